@@ -1,0 +1,7 @@
+"""``python -m roft_sim`` runs the ``roft-sim`` command line."""
+
+import sys
+
+from roft_sim.cli import main
+
+sys.exit(main())

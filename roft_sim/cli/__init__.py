@@ -1,0 +1,90 @@
+"""The ``roft-sim`` command line: ``main(argv) -> exit code``.
+
+Each verb lives in its own module of this package and exposes ``register(subparsers)``, which adds
+a sub-parser whose ``func(args) -> int`` runs the verb; modules are found automatically and
+listed in the order of their ``ORDER`` constant. The CLI stays thin: parse, build the config,
+call the library. Environment variables are read here and nowhere else in the package
+(``ROFT_SIM_ASSETS``, ``ROFT_SIM_CACHE``; ``MUJOCO_GL`` is MuJoCo's own).
+
+Exit codes: 0 success, 1 runtime error, 2 usage or configuration error, 130 interrupted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import pkgutil
+import sys
+from collections.abc import Sequence
+
+from roft_sim import __version__
+from roft_sim.errors import ConfigError, RoftSimError
+
+__all__ = ["main", "build_parser"]
+
+_log = logging.getLogger("roft_sim")
+
+EXIT_OK, EXIT_RUNTIME, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
+
+
+def _verb_modules() -> list:
+    modules = []
+    for info in pkgutil.iter_modules(__path__):
+        module = importlib.import_module(f"{__name__}.{info.name}")
+        if hasattr(module, "register"):
+            modules.append(module)
+    return sorted(modules, key=lambda m: (getattr(m, "ORDER", 100), m.__name__))
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The full argument parser (all verbs registered)."""
+    parser = argparse.ArgumentParser(
+        prog="roft-sim",
+        description="Simulation harness and dataset generator for 6D object pose and velocity "
+        "trackers under fast motion, delays and faults.",
+    )
+    parser.add_argument("--version", action="version", version=f"roft-sim {__version__}")
+    parser.add_argument(
+        "-v", "--verbose", action="count", default=0, help="more log output (-vv: debug)"
+    )
+    parser.add_argument("-q", "--quiet", action="store_true", help="only warnings and errors")
+    subparsers = parser.add_subparsers(dest="verb", metavar="VERB")
+    for module in _verb_modules():
+        module.register(subparsers)
+    return parser
+
+
+def _configure_logging(verbose: int, quiet: bool) -> None:
+    level = logging.WARNING if quiet else (logging.DEBUG if verbose > 1 else logging.INFO)
+    logging.basicConfig(
+        level=level, format="%(levelname)s %(name)s: %(message)s", stream=sys.stderr, force=True
+    )
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Runs ``roft-sim`` with ``argv`` (default: ``sys.argv[1:]``) and returns the exit code."""
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as e:  # argparse exits on --help (0) and on usage errors (2)
+        return int(e.code or 0)
+    if args.verb is None:
+        parser.print_help()
+        return EXIT_USAGE
+    _configure_logging(args.verbose, args.quiet)
+    try:
+        return int(args.func(args))
+    except ConfigError as e:
+        print(f"roft-sim {args.verb}: error: {e}", file=sys.stderr)
+        return EXIT_USAGE
+    except RoftSimError as e:
+        print(f"roft-sim {args.verb}: error: {e}", file=sys.stderr)
+        return EXIT_RUNTIME
+    except KeyboardInterrupt:
+        print(f"roft-sim {args.verb}: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,36 @@
+"""Output-directory handling shared by the verbs that write results."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+from roft_sim.errors import ConfigError
+
+__all__ = ["prepare_output_dir"]
+
+
+def prepare_output_dir(path: str | Path, *, overwrite: bool = False, resume: bool = False) -> Path:
+    """Creates ``path`` or checks that it may be written.
+
+    A non-empty directory is refused unless ``overwrite`` (it is emptied) or ``resume`` (kept as
+    is, so finished work is not redone).
+
+    Raises:
+        ConfigError: the path is a file, or a non-empty directory without overwrite/resume.
+    """
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise ConfigError(f"output {str(path)!r} is a file; give a directory path")
+    if path.is_dir() and any(path.iterdir()):
+        if overwrite and resume:
+            raise ConfigError("--overwrite and --resume contradict each other; pick one")
+        if overwrite:
+            shutil.rmtree(path)
+        elif not resume:
+            raise ConfigError(
+                f"output directory {str(path)!r} is not empty; pass --overwrite to replace it"
+                " or --resume to continue an interrupted run"
+            )
+    path.mkdir(parents=True, exist_ok=True)
+    return path

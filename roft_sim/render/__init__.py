@@ -1,0 +1,1 @@
+"""Offscreen MuJoCo rendering of rgb, depth and segmentation, and exact ground truth."""

@@ -1,0 +1,118 @@
+"""Choosing MuJoCo's offscreen OpenGL backend (EGL, else OSMesa) before ``import mujoco``.
+
+MuJoCo reads ``MUJOCO_GL`` once, when it is imported; PyOpenGL reads ``PYOPENGL_PLATFORM``. This
+module probes each backend in a short subprocess (a failed GL initialisation can leave a process
+unusable), sets both variables in the mapping it is given (``os.environ`` from the CLI or from
+pytest), and explains how to install a backend when none works.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import subprocess
+import sys
+from collections.abc import MutableMapping
+
+from roft_sim.errors import RenderBackendError
+
+__all__ = [
+    "BACKENDS",
+    "INSTALL_HINT",
+    "select_gl_backend",
+    "probe_gl_backend",
+    "require_gl_backend",
+]
+
+BACKENDS = ("egl", "osmesa")
+"""Backends tried, in order."""
+
+INSTALL_HINT = (
+    "install a CPU OpenGL backend: on Debian/Ubuntu run "
+    "'sudo apt-get install -y libegl1 libopengl0 libgl1-mesa-dri' (EGL) or "
+    "'sudo apt-get install -y libosmesa6' (OSMesa), then set MUJOCO_GL=egl or MUJOCO_GL=osmesa"
+)
+
+_PROBE_SCRIPT = (
+    "import mujoco\n"
+    "xml = '<mujoco><worldbody><geom size=\"1\"/></worldbody></mujoco>'\n"
+    "m = mujoco.MjModel.from_xml_string(xml)\n"
+    "r = mujoco.Renderer(m, 8, 8)\n"
+    "r.render()\n"
+    "r.close()\n"
+)
+
+
+@functools.cache
+def _probe(backend: str) -> str | None:
+    """None when ``backend`` renders in a fresh process, else the error it printed."""
+    env = {"MUJOCO_GL": backend, "PYOPENGL_PLATFORM": backend}
+    full_env = {**os.environ, **env}
+    try:
+        result = subprocess.run(
+            [sys.executable, "-c", _PROBE_SCRIPT],
+            env=full_env,
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
+    except subprocess.TimeoutExpired:
+        return f"{backend}: the probe timed out"
+    if result.returncode == 0:
+        return None
+    lines = [ln for ln in result.stderr.strip().splitlines() if ln.strip()]
+    return f"{backend}: {lines[-1] if lines else f'exit code {result.returncode}'}"
+
+
+def select_gl_backend(environ: MutableMapping[str, str]) -> str | None:
+    """Sets ``MUJOCO_GL``/``PYOPENGL_PLATFORM`` in ``environ`` to the first working backend.
+
+    A backend the user already chose (``MUJOCO_GL`` set) is kept without probing. Returns the
+    backend, or None when none works (rendering will then fail with :func:`require_gl_backend`'s
+    message).
+    """
+    chosen = environ.get("MUJOCO_GL")
+    if chosen:
+        environ.setdefault("PYOPENGL_PLATFORM", chosen)
+        return chosen
+    for backend in BACKENDS:
+        if _probe(backend) is None:
+            environ["MUJOCO_GL"] = backend
+            environ.setdefault("PYOPENGL_PLATFORM", backend)
+            return backend
+    return None
+
+
+def probe_gl_backend(backend: str | None = None) -> str | None:
+    """None when offscreen rendering works, else a message naming the problem and the fix.
+
+    Args:
+        backend: the backend to check; default: the one in ``MUJOCO_GL``, else any of
+            :data:`BACKENDS`.
+    """
+    if backend:
+        candidates: tuple[str, ...] = (backend,)
+    elif os.environ.get("MUJOCO_GL"):
+        candidates = (os.environ["MUJOCO_GL"],)
+    else:
+        candidates = BACKENDS
+    problems = []
+    for b in candidates:
+        problem = _probe(b)
+        if problem is None:
+            return None
+        problems.append(problem)
+    return "; ".join(problems) + f". To fix, {INSTALL_HINT}"
+
+
+def require_gl_backend(environ: MutableMapping[str, str]) -> str:
+    """Like :func:`select_gl_backend`, but raises when no backend works.
+
+    Raises:
+        RenderBackendError: neither EGL nor OSMesa initialises; the message says what to install.
+    """
+    backend = select_gl_backend(environ)
+    problem = probe_gl_backend(backend) if backend else probe_gl_backend()
+    if backend is None or problem is not None:
+        raise RenderBackendError(f"offscreen rendering is unavailable ({problem})")
+    return backend

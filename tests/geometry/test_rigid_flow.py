@@ -1,0 +1,90 @@
+"""Analytic rigid flow: reprojection, stride composition, occlusion and forward-backward checks."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from roft_sim.geometry import CameraIntrinsics, matrix_from_rotvec, transform_from_rt
+from roft_sim.geometry.rigid_flow import object_and_static_motions, rigid_flow
+
+CAM = CameraIntrinsics(
+    fx_px=200.0, fy_px=200.0, cx_px=80.3, cy_px=59.7, width_px=160, height_px=120
+)
+
+
+def _plane_depth(z_m: float) -> np.ndarray:
+    return np.full(CAM.shape, z_m, dtype=np.float32)
+
+
+def test_pure_translation_parallel_to_image_gives_uniform_flow():
+    depth = _plane_depth(1.0)
+    M = transform_from_rt(np.eye(3), [0.01, -0.02, 0.0])
+    flow, valid = rigid_flow(CAM, depth, np.zeros(CAM.shape, int), M[None])
+    inner = valid.copy()
+    assert inner[10:-10, 10:-10].all()
+    np.testing.assert_allclose(
+        flow[valid], np.broadcast_to([2.0, -4.0], flow[valid].shape), atol=1e-4
+    )
+
+
+def test_static_world_has_zero_flow_and_unknown_body_is_invalid():
+    depth = _plane_depth(1.5)
+    body = np.zeros(CAM.shape, int)
+    body[:, :10] = -1
+    flow, valid = rigid_flow(CAM, depth, body, object_and_static_motions(np.eye(4), np.eye(4)))
+    assert not valid[:, :10].any() and valid[:, 10:].all()
+    assert np.abs(flow).max() < 1e-9
+
+
+def test_stride_two_equals_chained_point_motion():
+    depth = _plane_depth(0.8)
+    M1 = transform_from_rt(matrix_from_rotvec([0.0, 0.02, 0.01]), [0.01, 0.0, 0.005])
+    M2 = transform_from_rt(matrix_from_rotvec([0.01, -0.01, 0.0]), [0.0, 0.01, -0.004])
+    f2, v2 = rigid_flow(CAM, depth, np.zeros(CAM.shape, int), (M2 @ M1)[None])
+    # track one interior pixel through both motions
+    f1, _ = rigid_flow(CAM, depth, np.zeros(CAM.shape, int), M1[None])
+    u, v = 70, 50
+    X = np.array([(u - CAM.cx_px) / CAM.fx_px * 0.8, (v - CAM.cy_px) / CAM.fy_px * 0.8, 0.8])
+    X2 = (M2 @ M1 @ np.append(X, 1))[:3]
+    uv2 = [CAM.fx_px * X2[0] / X2[2] + CAM.cx_px, CAM.fy_px * X2[1] / X2[2] + CAM.cy_px]
+    np.testing.assert_allclose(f2[v, u], np.array(uv2) - [u, v], atol=1e-4)
+    assert v2[v, u]
+    assert not np.allclose(f1[v, u], f2[v, u])
+
+
+def test_occlusion_by_nearer_surface_is_invalid():
+    depth = _plane_depth(1.0)
+    M = transform_from_rt(np.eye(3), [0.05, 0.0, 0.0])
+    depth_to = _plane_depth(1.0)
+    depth_to[:, 100:] = 0.5  # something nearer covers the right part in the later frame
+    flow, valid = rigid_flow(CAM, depth, np.zeros(CAM.shape, int), M[None], depth_to_m=depth_to)
+    target_u = np.arange(CAM.width_px) + 10.0
+    assert not valid[:, (target_u >= 99.5) & (target_u < 159.5)].any()
+    assert valid[20:-20, 20:80].all()
+
+
+def test_forward_backward_consistency():
+    depth = _plane_depth(0.9)
+    M = transform_from_rt(matrix_from_rotvec([0.01, 0.03, -0.02]), [0.02, -0.01, 0.03])
+    fwd, valid = rigid_flow(CAM, depth, np.zeros(CAM.shape, int), M[None])
+    rows, cols = np.nonzero(valid)
+    X = np.stack(
+        [
+            (cols - CAM.cx_px) / CAM.fx_px * 0.9,
+            (rows - CAM.cy_px) / CAM.fy_px * 0.9,
+            np.full(rows.shape, 0.9),
+        ],
+        1,
+    )
+    X_to = X @ M[:3, :3].T + M[:3, 3]
+    Minv = np.linalg.inv(M)
+    back = X_to @ Minv[:3, :3].T + Minv[:3, 3]
+    uv_back = np.stack(
+        [
+            CAM.fx_px * back[:, 0] / back[:, 2] + CAM.cx_px,
+            CAM.fy_px * back[:, 1] / back[:, 2] + CAM.cy_px,
+        ],
+        1,
+    )
+    np.testing.assert_allclose(uv_back, np.stack([cols, rows], 1), atol=1e-9)
+    assert np.abs(fwd[valid]).max() > 1.0

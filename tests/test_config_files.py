@@ -1,0 +1,99 @@
+"""Strict TOML -> dataclass loading: unknown keys, types, nested tables, tagged unions."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal
+
+import pytest
+
+from roft_sim.config_files import dataclass_from_mapping, jsonable, load_dataclass_toml
+from roft_sim.errors import ConfigError
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Inner:
+    rate_hz: int = 30
+    scale: float = 1.0
+
+    def __post_init__(self) -> None:
+        if self.rate_hz <= 0:
+            raise ConfigError(f"rate_hz must be positive, got {self.rate_hz}")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Delay:
+    kind: Literal["delay"] = "delay"
+    frames: int = 0
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Drop:
+    kind: Literal["drop"] = "drop"
+    p: float = 0.1
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Outer:
+    name: str
+    inner: Inner = field(default_factory=Inner)
+    mode: Literal["a", "b"] = "a"
+    size: tuple[int, int] = (1, 2)
+    path: Path | None = None
+    faults: tuple[Delay | Drop, ...] = ()
+
+
+def test_builds_nested_and_coerces_int_to_float():
+    cfg = dataclass_from_mapping(
+        Outer,
+        {
+            "name": "x",
+            "inner": {"scale": 2},
+            "size": [3, 4],
+            "path": "a/b",
+            "faults": [{"kind": "drop", "p": 0.5}],
+        },
+    )
+    assert cfg.inner == Inner(scale=2.0) and cfg.size == (3, 4) and cfg.path == Path("a/b")
+    assert cfg.faults == (Drop(p=0.5),)
+
+
+@pytest.mark.parametrize(
+    ("data", "match"),
+    [
+        ({"name": "x", "inne": {}}, r"unknown key 'inne' for Outer; did you mean 'inner'"),
+        ({}, "missing required key 'name'"),
+        ({"name": 3}, r"config\.name: expected a string"),
+        ({"name": "x", "mode": "c"}, r"expected one of 'a', 'b'"),
+        ({"name": "x", "inner": {"rate_hz": 0}}, r"config\.inner: rate_hz must be positive"),
+        ({"name": "x", "inner": {"rate_hz": 2.5}}, "expected an integer"),
+        ({"name": "x", "size": [1]}, "expected 2 values"),
+        ({"name": "x", "faults": [{"kind": "delya"}]}, r"did you mean 'delay'"),
+        ({"name": "x", "inner": {"rate_hz": True}}, "expected an integer"),
+    ],
+)
+def test_errors_name_the_key_and_the_fix(data, match):
+    with pytest.raises(ConfigError, match=match):
+        dataclass_from_mapping(Outer, data)
+
+
+def test_load_from_toml_file_with_table(tmp_path):
+    f = tmp_path / "c.toml"
+    f.write_text('[outer]\nname = "n"\n[outer.inner]\nrate_hz = 5\n')
+    assert load_dataclass_toml(Outer, f, table="outer").inner.rate_hz == 5
+    with pytest.raises(ConfigError, match=r"has no \[other\] table"):
+        load_dataclass_toml(Outer, f, table="other")
+    bad = tmp_path / "bad.toml"
+    bad.write_text("name = \n")
+    with pytest.raises(ConfigError, match="not valid TOML"):
+        load_dataclass_toml(Outer, bad)
+    with pytest.raises(ConfigError, match="does not exist"):
+        load_dataclass_toml(Outer, tmp_path / "missing.toml")
+
+
+def test_jsonable_roundtrip_of_config():
+    cfg = dataclass_from_mapping(Outer, {"name": "x", "path": "p", "faults": [{"kind": "delay"}]})
+    data = jsonable(cfg)
+    assert data["path"] == "p" and data["size"] == [1, 2]
+    assert dataclass_from_mapping(Outer, data) == cfg
