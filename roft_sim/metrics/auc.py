@@ -1,0 +1,86 @@
+"""Area under the ADD accuracy-threshold curve, exactly as the YCB-Video toolbox computes it.
+
+The YCB-Video toolbox (yuxng/YCB_Video_toolbox, ``VOCap`` in ``plot_accuracy_keyframe.m``) and the
+ROFT reference evaluation (``evaluation/metrics.py`` calling bop_pose_error's ``VOCap``) do:
+
+1. set every distance above the maximum threshold (0.1 m) to ``inf``;
+2. sort all N distances (failures at the end) and give the i-th its accuracy ``i / N``;
+3. keep the finite ones, ``d_1 <= ... <= d_n``, with their accuracies ``prec_i = i / N``;
+4. ``mrec = [0, d_1, ..., d_n, 0.1]``, ``mpre = [0, prec_1, ..., prec_n, prec_n]``, made
+   non-decreasing by a running maximum;
+5. ``AUC = (1 / 0.1) sum_{i : mrec_i != mrec_(i-1)} (mrec_i - mrec_(i-1)) mpre_i``, x100 for %.
+
+This is a right-endpoint step integral of the accuracy curve over continuous thresholds in
+[0, 0.1] m (not 1 cm steps). With ties, the interval ending at a repeated value takes the
+accuracy of the FIRST of the tied entries, as the MATLAB code does. With no finite distance it
+is 0. The reference accumulates the accuracies in float32; here they are float64 (the
+difference is below 1e-5 percentage points).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+F64 = NDArray[np.float64]
+
+__all__ = ["add_auc", "accuracy_curve", "DEFAULT_MAX_THRESHOLD_M"]
+
+DEFAULT_MAX_THRESHOLD_M = 0.1
+"""Largest ADD threshold of the YCB-Video AUC [m]."""
+
+
+def _distances(distances_m: ArrayLike) -> F64:
+    d = np.asarray(distances_m, dtype=np.float64)
+    if d.ndim != 1:
+        raise ValueError(f"distances_m must have shape (N,), got {d.shape}")
+    if (d < 0).any():
+        raise ValueError(f"distances must be >= 0, got min {np.nanmin(d)}")
+    return np.where(np.isnan(d), np.inf, d)
+
+
+def add_auc(distances_m: ArrayLike, *, max_threshold_m: float = DEFAULT_MAX_THRESHOLD_M) -> float:
+    """ADD (or ADD-S) AUC in percent, the YCB-Video ``VOCap`` (see the module docstring).
+
+    Args:
+        distances_m: (N,) per-frame distances [m]; NaN and inf count as failures (they stay in
+            N, so they lower the accuracy of every threshold).
+        max_threshold_m: the largest threshold [m]; 0.1 in the YCB-Video protocol.
+
+    Returns:
+        AUC in [0, 100] %; NaN when N = 0 (no frame to evaluate).
+    """
+    if not max_threshold_m > 0:
+        raise ValueError(f"max_threshold_m must be > 0, got {max_threshold_m}")
+    d = _distances(distances_m)
+    n_total = d.size
+    if n_total == 0:
+        return float("nan")
+    d = np.sort(np.where(d > max_threshold_m, np.inf, d))
+    prec = np.arange(1, n_total + 1, dtype=np.float64) / n_total
+    finite = np.isfinite(d)
+    rec, prec = d[finite], prec[finite]
+    if rec.size == 0:
+        return 0.0
+    mrec = np.concatenate([[0.0], rec, [max_threshold_m]])
+    mpre = np.maximum.accumulate(np.concatenate([[0.0], prec, [prec[-1]]]))
+    step = np.flatnonzero(mrec[1:] != mrec[:-1]) + 1
+    area = np.sum((mrec[step] - mrec[step - 1]) * mpre[step])
+    return float(area / max_threshold_m * 100.0)
+
+
+def accuracy_curve(distances_m: ArrayLike, thresholds_m: ArrayLike) -> F64:
+    """Fraction of frames with distance ``<= tau`` for each threshold (T,), failures included.
+
+    Args:
+        distances_m: (N,) distances [m]; NaN/inf never pass.
+        thresholds_m: (T,) thresholds [m].
+
+    Returns:
+        (T,) accuracies in [0, 1] (NaN when N = 0); for plots and the "ADD-S < 2 cm" number.
+    """
+    d = np.sort(_distances(distances_m))
+    tau = np.asarray(thresholds_m, dtype=np.float64)
+    if d.size == 0:
+        return np.full(tau.shape, np.nan)
+    return np.searchsorted(d, tau, side="right") / d.size
