@@ -1,0 +1,440 @@
+"""Optical-flow sources: where a tracker's flow comes from (docs/sensors.md).
+
+A flow source turns a :class:`~roft_sim.datasets.base.Sequence` into the flow between two of its
+frames, ``F`` mapping pixels of ``from_k`` to ``to_k`` (``p + F(p)``, full-resolution pixels):
+
+=====================  ============================================================================
+spec                   source
+=====================  ============================================================================
+``gt``                 :class:`GroundTruthFlowSource`: exact motion field from depth, gt mask and
+                       poses, any stride (``roft_sim.geometry.rigid_flow``)
+``gt+noise``           :class:`NoisyGroundTruthFlowSource`: gt plus a configurable end-point-error
+                       model (:class:`FlowNoiseConfig` defaults)
+``dis[:<preset>]``     :class:`DisFlowSource`: OpenCV DIS on the grey rgb images, any stride
+``nvof-like:<inner>``  :class:`NvofLikeFlowSource`: any source averaged on 4x4 blocks and quantised
+                       to NVOF's S10.5 int16, like the reference ``nvof_1_slow`` set
+``stored:<set>``       :class:`StoredFlowSource`: the sequence's stored flow set (stride 1 only)
+=====================  ============================================================================
+
+Stochastic sources are deterministic per ``(seed, from_k, to_k)``: each call draws from its own
+generator ``SeedSequence([seed, from_k, to_k])``, so the flow of a frame pair never depends on
+which other pairs were asked for, or in which order.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from roft_sim.datasets.base import GT_MASK_SET, Sequence
+from roft_sim.errors import ConfigError
+from roft_sim.geometry.rigid_flow import (
+    DEFAULT_OCCLUSION_TOLERANCE,
+    object_and_static_motions,
+    rigid_flow,
+)
+from roft_sim.records import FlowField, PoseTrack
+
+F32 = NDArray[np.float32]
+F64 = NDArray[np.float64]
+
+__all__ = [
+    "FlowSource",
+    "StoredFlowSource",
+    "GroundTruthFlowSource",
+    "FlowNoiseConfig",
+    "apply_flow_noise",
+    "NoisyGroundTruthFlowSource",
+    "DisFlowSource",
+    "DIS_PRESETS",
+    "NvofLikeFlowSource",
+    "NVOF_GRID_PX",
+    "s10_5_from_flow_px",
+    "flow_px_from_s10_5",
+    "make_flow_source",
+    "frame_rng",
+    "FLOW_SOURCE_SPECS",
+]
+
+FLOW_SOURCE_SPECS = ("gt", "gt+noise", "dis[:<preset>]", "nvof-like:<inner>", "stored:<set>")
+"""The spec forms :func:`make_flow_source` understands."""
+
+NVOF_GRID_PX = 4
+"""NVOF 1.0 output grid: one vector per 4x4 block."""
+
+_S10_5_SCALE = 32.0
+"""NVOF's S10.5 fixed point: int16 with 5 fractional bits (value / 32 = pixels)."""
+
+
+def frame_rng(seed: int, *keys: int) -> np.random.Generator:
+    """A generator for one (seed, frame keys) combination: ``SeedSequence([seed, *keys])``.
+
+    Args:
+        seed: the subsystem's seed (>= 0).
+        keys: frame indices (>= 0), e.g. ``from_k, to_k``.
+    """
+    entropy = [int(seed), *(int(k) for k in keys)]
+    if min(entropy) < 0:
+        raise ValueError(f"seed and frame keys must be >= 0, got {entropy}")
+    return np.random.default_rng(np.random.SeedSequence(entropy))
+
+
+@runtime_checkable
+class FlowSource(Protocol):
+    """Flow between two frames of a sequence."""
+
+    name: str
+    """Short label; for sources built by :func:`make_flow_source`, the spec string (custom
+    configs are not part of it: record them separately)."""
+
+    def flow(self, sequence: Sequence, from_k: int, to_k: int) -> FlowField | None:
+        """Flow mapping pixels of frame ``from_k`` to frame ``to_k``, or None when this source
+        cannot provide it (e.g. a stored set asked for a stride other than 1)."""
+        ...
+
+
+def _check_frames(sequence: Sequence, from_k: int, to_k: int) -> None:
+    n = len(sequence)
+    if not (0 <= from_k < n and 0 <= to_k < n) or from_k == to_k:
+        raise ValueError(
+            f"flow needs two different frames in [0, {n - 1}] of sequence {sequence.name!r}, "
+            f"got from_k={from_k}, to_k={to_k}"
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class StoredFlowSource:
+    """The flow stored with the dataset (e.g. Fast-YCB's ``nvof_1_slow``).
+
+    Stored sets hold consecutive-frame flow only (file ``k`` is ``F_(k-1 -> k)``), so any other
+    stride gives None; use ``gt`` or ``dis`` for strides above 1.
+    """
+
+    flow_set: str
+    """Name of the stored set."""
+
+    @property
+    def name(self) -> str:
+        return f"stored:{self.flow_set}"
+
+    def flow(self, sequence: Sequence, from_k: int, to_k: int) -> FlowField | None:
+        _check_frames(sequence, from_k, to_k)
+        if self.flow_set not in sequence.flow_sets():
+            raise ConfigError(
+                f"sequence {sequence.name!r} has no stored flow set {self.flow_set!r}; it has "
+                f"{list(sequence.flow_sets()) or 'none'}; pick one of those or use 'gt' / 'dis'"
+            )
+        if to_k - from_k != 1:
+            return None
+        return sequence.flow(to_k, self.flow_set)
+
+
+class GroundTruthFlowSource:
+    """Exact flow (a motion field) for any stride, from the sequence's ground truth.
+
+    Uses the depth and ``gt`` (visible) mask of ``from_k``: mask pixels move with the object's
+    ground-truth pose, every other pixel with depth is static in the world and moves only with
+    the camera (``camera_poses()``). Pixels are valid when they have depth, land in front of
+    the camera and inside the image, and (with ``occlusion_test``) are not hidden in ``to_k``
+    by a nearer surface, judged from ``depth(to_k)``. Other moving bodies (e.g. a hand
+    occluder) are not in the gt mask and are treated as static, so their flow is wrong.
+    """
+
+    name = "gt"
+
+    __slots__ = ("occlusion_test", "occlusion_tolerance", "_cache")
+
+    def __init__(
+        self,
+        *,
+        occlusion_test: bool = True,
+        occlusion_tolerance: tuple[float, float] = DEFAULT_OCCLUSION_TOLERANCE,
+    ) -> None:
+        self.occlusion_test = occlusion_test
+        self.occlusion_tolerance = occlusion_tolerance
+        self._cache: tuple[Sequence, PoseTrack, F64] | None = None
+
+    def _geometry(self, sequence: Sequence) -> tuple[PoseTrack, F64]:
+        if self._cache is None or self._cache[0] is not sequence:
+            gt = sequence.ground_truth()
+            if gt is None:
+                raise ConfigError(
+                    f"sequence {sequence.name!r} has no ground-truth poses, so flow source 'gt' "
+                    "cannot be used; use 'dis' or a stored flow set"
+                )
+            if GT_MASK_SET not in sequence.mask_sets():
+                raise ConfigError(
+                    f"sequence {sequence.name!r} has no {GT_MASK_SET!r} mask set, which flow "
+                    "source 'gt' needs to tell the object from the static world"
+                )
+            self._cache = (sequence, gt, np.asarray(sequence.camera_poses(), dtype=np.float64))
+        return self._cache[1], self._cache[2]
+
+    def flow(self, sequence: Sequence, from_k: int, to_k: int) -> FlowField:
+        _check_frames(sequence, from_k, to_k)
+        gt, T_world_cam = self._geometry(sequence)
+        depth = np.asarray(sequence.depth(from_k), dtype=np.float32)
+        mask = sequence.mask(from_k, GT_MASK_SET)
+        obj = np.zeros(depth.shape, bool) if mask is None else np.asarray(mask, dtype=bool)
+        body = np.where(obj, 1, np.where(depth > 0, 0, -1))
+        motions = object_and_static_motions(
+            gt.T_cam_obj[from_k], gt.T_cam_obj[to_k], T_world_cam[from_k], T_world_cam[to_k]
+        )
+        flow, valid = rigid_flow(
+            sequence.intrinsics,
+            depth,
+            body,
+            motions,
+            depth_to_m=sequence.depth(to_k) if self.occlusion_test else None,
+            occlusion_tolerance=self.occlusion_tolerance,
+        )
+        return FlowField(flow_px=flow, from_k=from_k, to_k=to_k, grid_px=1, valid=valid)
+
+
+def _finite_at_least(owner: str, name: str, value: float, low: float) -> None:
+    if not (np.isfinite(value) and value >= low):
+        raise ConfigError(f"{owner}.{name} must be a finite number >= {low}, got {value}")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class FlowNoiseConfig:
+    """End-point-error model of :class:`NoisyGroundTruthFlowSource` (TOML-loadable).
+
+    Per valid pixel: ``F = F_gt + e``, with ``e`` Gaussian of per-component standard deviation
+    ``sqrt(sigma_px^2 + (relative_sigma |F_gt|)^2)``, spatially correlated by a Gaussian blur of
+    ``correlation_px`` (the blur is renormalised, so ``sigma_px`` stays the per-pixel std). A
+    fraction of pixels are gross outliers, and square holes are marked invalid. The defaults
+    give a mean end-point error of about 0.4 px plus 1 % outliers: a plausible good dense flow,
+    NOT calibrated against NVOF (no reference data is available to do so).
+    """
+
+    sigma_px: float = 0.3
+    """Per-component std of the additive error [px]."""
+    relative_sigma: float = 0.05
+    """Per-component std per pixel of true flow magnitude [px/px]."""
+    correlation_px: float = 2.0
+    """Std of the Gaussian blur that correlates the error field [px]; 0 = white noise."""
+    outlier_fraction: float = 0.01
+    """Fraction of valid pixels replaced by ``F_gt + u``, ``u`` uniform in a disc."""
+    outlier_max_px: float = 20.0
+    """Radius of that disc [px]."""
+    hole_fraction: float = 0.0
+    """Fraction of ``hole_size_px`` squares marked invalid."""
+    hole_size_px: int = 8
+    """Side of a hole square [px]."""
+
+    def __post_init__(self) -> None:
+        owner = "FlowNoiseConfig"
+        for name in ("sigma_px", "relative_sigma", "correlation_px", "outlier_max_px"):
+            _finite_at_least(owner, name, getattr(self, name), 0.0)
+        for name in ("outlier_fraction", "hole_fraction"):
+            value = getattr(self, name)
+            if not 0.0 <= value <= 1.0:
+                raise ConfigError(f"{owner}.{name} must be in [0, 1], got {value}")
+        if self.hole_size_px < 1:
+            raise ConfigError(f"{owner}.hole_size_px must be >= 1, got {self.hole_size_px}")
+
+
+def _correlated_normal(rng: np.random.Generator, shape: tuple[int, int], sigma_px: float) -> F64:
+    """(H, W, 2) standard normal field, blurred by ``sigma_px`` and renormalised to unit std."""
+    white = rng.standard_normal(shape + (2,))
+    if sigma_px <= 0:
+        return white
+    ksize = 2 * int(np.ceil(3.0 * sigma_px)) + 1
+    k1 = cv2.getGaussianKernel(ksize, sigma_px, cv2.CV_64F)[:, 0]
+    gain = float(np.sum(k1**2))  # std of the blurred field = gain (separable 2-D kernel)
+    blurred = cv2.GaussianBlur(
+        white, (ksize, ksize), sigma_px, sigma_px, borderType=cv2.BORDER_REFLECT
+    )
+    return blurred / gain
+
+
+def apply_flow_noise(
+    flow: FlowField, config: FlowNoiseConfig, rng: np.random.Generator
+) -> FlowField:
+    """``flow`` with the :class:`FlowNoiseConfig` error model applied (a new record).
+
+    Args:
+        flow: exact flow (any grid; the noise parameters are in flow-grid cells when
+            ``grid_px > 1``).
+        config: the error model.
+        rng: generator for this frame pair.
+    """
+    f = flow.flow_px.astype(np.float64)
+    shape = f.shape[:2]
+    valid = np.ones(shape, bool) if flow.valid is None else flow.valid.copy()
+    e = _correlated_normal(rng, shape, config.correlation_px)
+    mag = np.linalg.norm(f, axis=2, keepdims=True)
+    noisy = f + e * np.sqrt(config.sigma_px**2 + (config.relative_sigma * mag) ** 2)
+    out = rng.random(shape) < config.outlier_fraction
+    radius = config.outlier_max_px * np.sqrt(rng.random(shape))
+    angle = rng.uniform(0.0, 2.0 * np.pi, shape)
+    jump = np.stack([radius * np.cos(angle), radius * np.sin(angle)], axis=2)
+    noisy = np.where(out[..., None], f + jump, noisy)
+    if config.hole_fraction > 0:
+        s = config.hole_size_px
+        blocks = rng.random((-(-shape[0] // s), -(-shape[1] // s))) < config.hole_fraction
+        holes = np.repeat(np.repeat(blocks, s, 0), s, 1)[: shape[0], : shape[1]]
+        valid &= ~holes
+    noisy[~valid] = 0.0
+    return FlowField(
+        flow_px=noisy.astype(np.float32),
+        from_k=flow.from_k,
+        to_k=flow.to_k,
+        grid_px=flow.grid_px,
+        valid=valid,
+    )
+
+
+class NoisyGroundTruthFlowSource:
+    """Ground-truth flow plus the :class:`FlowNoiseConfig` end-point-error model."""
+
+    __slots__ = ("config", "seed", "_gt")
+
+    def __init__(self, config: FlowNoiseConfig | None = None, seed: int = 0) -> None:
+        self.config = config if config is not None else FlowNoiseConfig()
+        self.seed = int(seed)
+        self._gt = GroundTruthFlowSource()
+
+    name = "gt+noise"
+
+    def flow(self, sequence: Sequence, from_k: int, to_k: int) -> FlowField:
+        exact = self._gt.flow(sequence, from_k, to_k)
+        return apply_flow_noise(exact, self.config, frame_rng(self.seed, from_k, to_k))
+
+
+DIS_PRESETS = {
+    "ultrafast": cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST,
+    "fast": cv2.DISOPTICAL_FLOW_PRESET_FAST,
+    "medium": cv2.DISOPTICAL_FLOW_PRESET_MEDIUM,
+}
+"""OpenCV DIS presets by name."""
+
+
+class DisFlowSource:
+    """OpenCV's Dense Inverse Search flow (Kroeger et al. 2016) on the grey rgb images.
+
+    Computed directly between ``from_k`` and ``to_k`` (any stride, no chaining). A real
+    algorithm's errors: texture-dependent, smoothed over motion boundaries, no validity mask.
+    DIS is deterministic; ``seed`` is kept for the common signature and ignored.
+    """
+
+    __slots__ = ("preset", "seed")
+
+    def __init__(self, preset: str = "medium", seed: int = 0) -> None:
+        if preset not in DIS_PRESETS:
+            raise ConfigError(
+                f"unknown DIS preset {preset!r}; expected one of {', '.join(DIS_PRESETS)}"
+            )
+        self.preset = preset
+        self.seed = int(seed)
+
+    @property
+    def name(self) -> str:
+        return f"dis:{self.preset}"
+
+    def flow(self, sequence: Sequence, from_k: int, to_k: int) -> FlowField:
+        _check_frames(sequence, from_k, to_k)
+        grey = [
+            cv2.cvtColor(np.ascontiguousarray(sequence.rgb(k)), cv2.COLOR_RGB2GRAY)
+            for k in (from_k, to_k)
+        ]
+        dis = cv2.DISOpticalFlow_create(DIS_PRESETS[self.preset])
+        flow = dis.calc(grey[0], grey[1], None)
+        return FlowField(flow_px=flow.astype(np.float32), from_k=from_k, to_k=to_k, grid_px=1)
+
+
+def s10_5_from_flow_px(flow_px: NDArray[np.floating]) -> NDArray[np.int16]:
+    """NVOF S10.5 fixed point: ``round(32 F)`` saturated to int16 (|F| <= 1023.97 px)."""
+    q = np.rint(np.asarray(flow_px, dtype=np.float64) * _S10_5_SCALE)
+    return np.clip(q, np.iinfo(np.int16).min, np.iinfo(np.int16).max).astype(np.int16)
+
+
+def flow_px_from_s10_5(q: NDArray[np.int16]) -> F32:
+    """Pixels from NVOF S10.5 fixed point: ``q / 32`` as float32 (exact)."""
+    return (np.asarray(q, dtype=np.float32) / np.float32(_S10_5_SCALE)).astype(np.float32)
+
+
+class NvofLikeFlowSource:
+    """Any flow reduced to NVOF 1.0's output: one vector per ``grid_px`` block, S10.5 int16.
+
+    Each block's vector is the mean of the inner flow over the block's valid pixels (NVOF
+    estimates one motion per block), then rounded to 1/32 px and saturated to +-1024 px. So
+    against the block mean the error is at most 1/64 px; against the inner flow at a pixel it is
+    at most 1/64 px plus the flow's spread within the block. Blocks without a valid pixel are
+    invalid (0). Consumers read the vector of pixel ``(u, v)`` at ``[v // 4, u // 4]``.
+    """
+
+    __slots__ = ("inner", "grid_px")
+
+    def __init__(self, inner: FlowSource, *, grid_px: int = NVOF_GRID_PX) -> None:
+        if grid_px < 1:
+            raise ConfigError(f"grid_px must be >= 1, got {grid_px}")
+        self.inner = inner
+        self.grid_px = int(grid_px)
+
+    @property
+    def name(self) -> str:
+        return f"nvof-like:{self.inner.name}"
+
+    def flow(self, sequence: Sequence, from_k: int, to_k: int) -> FlowField | None:
+        inner = self.inner.flow(sequence, from_k, to_k)
+        if inner is None:
+            return None
+        h, w = sequence.intrinsics.shape
+        g = self.grid_px
+        hg, wg = -(-h // g), -(-w // g)
+        dense = np.full((hg * g, wg * g, 2), np.nan, dtype=np.float64)
+        dense[:h, :w] = inner.dense(h, w)
+        blocks = dense.reshape(hg, g, wg, g, 2)
+        ok = np.isfinite(blocks).all(axis=4)
+        count = ok.sum(axis=(1, 3))
+        total = np.where(ok[..., None], blocks, 0.0).sum(axis=(1, 3))
+        valid = count > 0
+        mean = np.where(valid[..., None], total / np.maximum(count, 1)[..., None], 0.0)
+        flow = flow_px_from_s10_5(s10_5_from_flow_px(mean))
+        return FlowField(
+            flow_px=flow,
+            from_k=from_k,
+            to_k=to_k,
+            grid_px=g,
+            valid=None if (valid.all() and inner.valid is None) else valid,
+        )
+
+
+def make_flow_source(spec: str, *, seed: int) -> FlowSource:
+    """Builds a flow source from its spec string (see the module docstring).
+
+    Args:
+        spec: ``gt``, ``gt+noise``, ``dis``, ``dis:<preset>``, ``nvof-like:<inner spec>`` or
+            ``stored:<set>``.
+        seed: seed of stochastic sources (each frame pair draws from
+            ``SeedSequence([seed, from_k, to_k])``).
+
+    Raises:
+        ConfigError: unknown spec.
+    """
+    kind, _, arg = spec.partition(":")
+    kind = kind.strip()
+    if kind == "gt" and not arg:
+        return GroundTruthFlowSource()
+    if kind == "gt+noise" and not arg:
+        return NoisyGroundTruthFlowSource(FlowNoiseConfig(), seed)
+    if kind == "dis":
+        return DisFlowSource(arg or "medium", seed)
+    if kind == "nvof-like" and arg:
+        return NvofLikeFlowSource(make_flow_source(arg, seed=seed))
+    if kind == "stored" and arg:
+        return StoredFlowSource(arg)
+    hint = ""
+    if kind == "nvof-like":
+        hint = " ('nvof-like' needs an inner source, e.g. 'nvof-like:dis' or 'nvof-like:gt')"
+    elif kind == "stored":
+        hint = " ('stored' needs a set name, e.g. 'stored:nvof_1_slow')"
+    raise ConfigError(
+        f"unknown flow source {spec!r}{hint}; expected one of {', '.join(FLOW_SOURCE_SPECS)}"
+    )
