@@ -1,0 +1,227 @@
+"""Offscreen rendering of one MuJoCo camera: rgb, z-depth and per-geom segmentation.
+
+A thin layer over MuJoCo's OpenGL renderer (``mujoco.GLContext``, ``MjrContext``, ``MjvScene``)
+that, unlike ``mujoco.Renderer``, reads rgb and depth from ONE render pass, converts MuJoCo's
+reversed-Z depth buffer to z-depth in metres (0 = nothing) here and nowhere else, and returns
+segmentation as geom ids (-1 = background).
+
+The colour pass uses the model's multisampling (``vis.quality.offsamples``) and, if asked, shadows.
+Depth and segmentation come from MuJoCo's segmentation pass (flat colours, no lighting), which
+MuJoCo renders without blending samples, so every pixel's depth belongs to the geom its id names.
+Without segmentation and without multisampling, depth is read from the colour pass (one pass).
+
+``MUJOCO_GL`` must be set before ``mujoco`` is first imported: call
+``roft_sim.render.gl_backend.select_gl_backend(os.environ)`` first (the CLI and tests do).
+"""
+
+from __future__ import annotations
+
+import contextlib
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+from numpy.typing import NDArray
+
+from roft_sim.errors import ConfigError
+
+__all__ = ["OffscreenRenderer", "RenderBuffers", "z_depth_from_depth_buffer"]
+
+U8 = NDArray[np.uint8]
+F32 = NDArray[np.float32]
+I32 = NDArray[np.int32]
+
+
+def z_depth_from_depth_buffer(buffer: F32, near_m: float, far_m: float) -> F32:
+    """z-depth [m] from MuJoCo's reversed-Z depth buffer (``readDepthMap = mjDEPTH_ZEROFAR``).
+
+    MuJoCo's projection maps the near plane to 1 and the far plane to 0, so
+    ``z = f n / (b (f - n) + n)``. Pixels at the far plane (``b <= 0``: no geometry) become 0.
+
+    Args:
+        buffer: (H, W) float32 depth-buffer values in [0, 1], bottom row first as read by OpenGL
+            or already flipped (the conversion is per pixel).
+        near_m, far_m: the frustum's near and far distances [m] used for the render.
+
+    Returns:
+        (H, W) float32 z-depth [m] (distance to the camera plane), 0 where nothing was drawn.
+    """
+    b = buffer.astype(np.float64)
+    z = (far_m * near_m) / (b * (far_m - near_m) + near_m)
+    return np.where(b > 0.0, z, 0.0).astype(np.float32)
+
+
+@dataclass(frozen=True, slots=True)
+class RenderBuffers:
+    """What one :meth:`OffscreenRenderer.render` call produced (None where not asked for)."""
+
+    rgb: U8 | None
+    """(H, W, 3) uint8 RGB, row 0 at the top."""
+    depth_m: F32 | None
+    """(H, W) float32 z-depth [m], 0 = nothing drawn."""
+    geom_id: I32 | None
+    """(H, W) int32 MuJoCo geom id seen at each pixel, -1 = background or non-geom."""
+
+
+class OffscreenRenderer:
+    """Renders a fixed MuJoCo camera of ``model`` offscreen. A context manager; not thread-safe.
+
+    Args:
+        model: the compiled model; ``model.vis.global_.offwidth/offheight`` must be at least the
+            render size (the scene builder sets them).
+        width_px, height_px: image size [px].
+        max_geom: capacity of the abstract scene.
+
+    Raises:
+        ConfigError: the offscreen buffer of ``model`` is smaller than the render size.
+    """
+
+    def __init__(
+        self, model: mujoco.MjModel, width_px: int, height_px: int, *, max_geom: int = 2000
+    ) -> None:
+        self._gl: mujoco.GLContext | None = None
+        self._ctx: mujoco.MjrContext | None = None
+        buf_w, buf_h = model.vis.global_.offwidth, model.vis.global_.offheight
+        if width_px > buf_w or height_px > buf_h:
+            raise ConfigError(
+                f"render size {width_px}x{height_px} exceeds the model's offscreen buffer "
+                f"{buf_w}x{buf_h}; set spec.visual.global_.offwidth/offheight to at least the "
+                "render size when building the scene"
+            )
+        self._model = model
+        self._width, self._height = int(width_px), int(height_px)
+        self._gl = mujoco.GLContext(self._width, self._height)
+        self._gl.make_current()
+        self._ctx = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_50.value)
+        mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN.value, self._ctx)
+        self._ctx.readDepthMap = mujoco.mjtDepthMap.mjDEPTH_ZEROFAR
+        self._scene = mujoco.MjvScene(model, maxgeom=max_geom)
+        self._option = mujoco.MjvOption()
+        self._camera = mujoco.MjvCamera()
+        self._camera.type = mujoco.mjtCamera.mjCAMERA_FIXED
+        self._rect = mujoco.MjrRect(0, 0, self._width, self._height)
+        self._rgb_buf = np.empty((self._height, self._width, 3), dtype=np.uint8)
+        self._depth_buf = np.empty((self._height, self._width), dtype=np.float32)
+
+    @property
+    def width_px(self) -> int:
+        return self._width
+
+    @property
+    def height_px(self) -> int:
+        return self._height
+
+    @property
+    def scene(self) -> mujoco.MjvScene:
+        """The abstract scene (after :meth:`update`)."""
+        return self._scene
+
+    def update(self, data: mujoco.MjData, camera_id: int) -> None:
+        """Copies the geometry of ``data`` (after ``mj_forward``/``mj_kinematics``) into the scene,
+        seen from fixed camera ``camera_id``."""
+        self._camera.fixedcamid = camera_id
+        mujoco.mjv_updateScene(
+            self._model,
+            data,
+            self._option,
+            None,
+            self._camera,
+            mujoco.mjtCatBit.mjCAT_ALL.value,
+            self._scene,
+        )
+
+    def render(
+        self,
+        *,
+        rgb: bool = True,
+        depth: bool = True,
+        segmentation: bool = False,
+        shadows: bool = False,
+    ) -> RenderBuffers:
+        """Renders the scene of the last :meth:`update`.
+
+        Args:
+            rgb: produce the colour image.
+            depth: produce z-depth.
+            segmentation: produce geom ids.
+            shadows: cast shadows in the colour pass.
+        """
+        if self._ctx is None or self._gl is None:
+            raise RuntimeError("OffscreenRenderer used after close()")
+        self._gl.make_current()
+        flags = self._scene.flags
+        multisampled = self._model.vis.quality.offsamples > 0
+        depth_from_colour = depth and not segmentation and not multisampled and rgb
+        out_rgb = out_depth = out_geom = None
+        if rgb:
+            saved = flags.copy()
+            flags[mujoco.mjtRndFlag.mjRND_SHADOW] = shadows
+            try:
+                mujoco.mjr_render(self._rect, self._scene, self._ctx)
+            finally:
+                np.copyto(flags, saved)
+            mujoco.mjr_readPixels(
+                self._rgb_buf, self._depth_buf if depth_from_colour else None, self._rect, self._ctx
+            )
+            out_rgb = np.ascontiguousarray(self._rgb_buf[::-1])
+            if depth_from_colour:
+                out_depth = self._z_depth(self._depth_buf[::-1])
+        if (depth and out_depth is None) or segmentation:
+            saved = flags.copy()
+            flags[mujoco.mjtRndFlag.mjRND_SEGMENT] = True
+            flags[mujoco.mjtRndFlag.mjRND_IDCOLOR] = True
+            flags[mujoco.mjtRndFlag.mjRND_SHADOW] = False
+            try:
+                mujoco.mjr_render(self._rect, self._scene, self._ctx)
+            finally:
+                np.copyto(flags, saved)
+            mujoco.mjr_readPixels(
+                self._rgb_buf if segmentation else None,
+                self._depth_buf if depth else None,
+                self._rect,
+                self._ctx,
+            )
+            if depth:
+                out_depth = self._z_depth(self._depth_buf[::-1])
+            if segmentation:
+                out_geom = self._geom_ids(self._rgb_buf[::-1])
+        return RenderBuffers(rgb=out_rgb, depth_m=out_depth, geom_id=out_geom)
+
+    def _z_depth(self, buffer: F32) -> F32:
+        cam = self._scene.camera[0]
+        return z_depth_from_depth_buffer(buffer, float(cam.frustum_near), float(cam.frustum_far))
+
+    def _geom_ids(self, id_colour: U8) -> I32:
+        """Geom ids from MuJoCo's id colours (``segid + 1`` packed little-endian in r, g, b)."""
+        code = id_colour.astype(np.int32)
+        segid = code[..., 0] | (code[..., 1] << 8) | (code[..., 2] << 16)
+        n = self._scene.ngeom
+        lut = np.full(n + 1, -1, dtype=np.int32)
+        geom_type = int(mujoco.mjtObj.mjOBJ_GEOM)
+        for i in range(n):
+            g = self._scene.geoms[i]
+            if g.segid >= 0 and g.objtype == geom_type:
+                lut[g.segid + 1] = g.objid
+        segid = np.where(segid <= n, segid, 0)
+        return lut[segid]
+
+    def close(self) -> None:
+        """Frees the OpenGL resources (idempotent)."""
+        if self._ctx is not None and self._gl is not None:
+            self._gl.make_current()
+            self._ctx.free()
+        self._ctx = None
+        if self._gl is not None:
+            self._gl.free()
+        self._gl = None
+
+    def __enter__(self) -> OffscreenRenderer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def __del__(self) -> None:
+        # At interpreter shutdown the GL library may already be gone.
+        with contextlib.suppress(Exception):
+            self.close()

@@ -1,0 +1,75 @@
+"""Camera ego-motion with exact velocities: the camera's pose in the world over time.
+
+The world frame is the OpenCV optical frame of the camera at rest; a static camera has
+``T_world_cam = I``. MuJoCo is not involved: the scene moves its camera body to these poses.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from roft_sim.geometry import matrix_from_rotvec, skew
+from roft_sim.scene.config import CameraMotionConfig, CameraSwayConfig
+
+F64 = NDArray[np.float64]
+
+__all__ = ["CameraPoses", "camera_poses", "so3_left_jacobian"]
+
+_PHASE_T = np.array([0.0, 2.0, 4.0]) * np.pi / 3.0
+_PHASE_R = np.pi / 2.0 + _PHASE_T
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class CameraPoses:
+    """Camera poses and velocities at N times, world frame."""
+
+    T_world_cam: F64
+    """(N, 4, 4) camera pose (OpenCV optical frame) in the world [m]."""
+    v_world_mps: F64
+    """(N, 3) velocity of the camera origin, world frame [m/s]."""
+    w_world_radps: F64
+    """(N, 3) camera angular velocity, world frame [rad/s] (``dR/dt = [w]x R``)."""
+
+
+def so3_left_jacobian(r: ArrayLike) -> F64:
+    """Left Jacobian ``(..., 3, 3)`` of SO(3) at rotation vectors ``r`` ``(..., 3)``:
+    ``d/dt exp([r]x) = [J_l(r) r']x exp([r]x)``."""
+    r = np.asarray(r, dtype=np.float64)
+    theta = np.linalg.norm(r, axis=-1)[..., None, None]
+    K = skew(r)
+    small = theta < 1e-6
+    t = np.where(small, 1.0, theta)
+    a = np.where(small, 0.5 - theta**2 / 24.0, (1.0 - np.cos(t)) / t**2)
+    b = np.where(small, 1.0 / 6.0 - theta**2 / 120.0, (t - np.sin(t)) / t**3)
+    return np.eye(3) + a * K + b * (K @ K)
+
+
+def camera_poses(config: CameraMotionConfig | None, t_s: ArrayLike) -> CameraPoses:
+    """Camera poses at times ``t_s`` ``(N,)`` [s]; None = a static camera at the world origin."""
+    t = np.atleast_1d(np.asarray(t_s, dtype=np.float64))
+    n = t.shape[0]
+    if config is None:
+        return CameraPoses(
+            T_world_cam=np.broadcast_to(np.eye(4), (n, 4, 4)).copy(),
+            v_world_mps=np.zeros((n, 3)),
+            w_world_radps=np.zeros((n, 3)),
+        )
+    if not isinstance(config, CameraSwayConfig):
+        raise TypeError(f"unsupported camera motion {config!r}")
+    omega = 2.0 * np.pi * config.frequency_hz
+    a_p = np.asarray(config.amplitude_m, dtype=np.float64)
+    a_r = np.asarray(config.amplitude_rad, dtype=np.float64)
+    phase_p = omega * t[:, None] + _PHASE_T
+    phase_r = omega * t[:, None] + _PHASE_R
+    p = a_p * np.sin(phase_p)
+    v = a_p * omega * np.cos(phase_p)
+    r = a_r * np.sin(phase_r)
+    r_dot = a_r * omega * np.cos(phase_r)
+    T = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
+    T[:, :3, :3] = matrix_from_rotvec(r)
+    T[:, :3, 3] = p
+    w = np.einsum("nij,nj->ni", so3_left_jacobian(r), r_dot)
+    return CameraPoses(T_world_cam=T, v_world_mps=v, w_world_radps=w)

@@ -1,0 +1,288 @@
+"""Configuration of the MuJoCo scene and of the renderer (the ``[scene]`` and ``[render]`` tables
+of a scenario file, and ``[camera.motion]``).
+
+Every length is in metres in the WORLD frame, which is the OpenCV optical frame of the camera at
+rest (x right, y down, z forward; docs/conventions.md): "below the camera" is +y, "in front" +z.
+These dataclasses import nothing from MuJoCo, so scenario files load without a GL backend.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from roft_sim.errors import ConfigError
+from roft_sim.sensors.depth_noise import DepthNoiseConfig, NoDepthNoise
+
+__all__ = [
+    "TEXTURE_STYLES",
+    "TableConfig",
+    "BackgroundConfig",
+    "LightConfig",
+    "HandConfig",
+    "SceneConfig",
+    "RenderConfig",
+    "CameraSwayConfig",
+    "CameraMotionConfig",
+]
+
+TextureStyle = Literal["wood", "stone", "fabric", "posters"]
+TEXTURE_STYLES: tuple[str, ...] = ("wood", "stone", "fabric", "posters")
+"""Procedural texture styles (see :mod:`roft_sim.scene.textures`)."""
+
+
+def _check_positive(owner: str, **values: float) -> None:
+    for name, value in values.items():
+        if not (np.isfinite(value) and value > 0):
+            raise ConfigError(f"{owner}.{name} must be a positive number, got {value}")
+
+
+def _check_texture_px(owner: str, value: int) -> None:
+    if not 16 <= value <= 4096:
+        raise ConfigError(f"{owner}.texture_px must be 16 to 4096, got {value}")
+
+
+def _check_unit_interval(owner: str, **values: float) -> None:
+    for name, value in values.items():
+        if not (np.isfinite(value) and 0.0 <= value <= 1.0):
+            raise ConfigError(f"{owner}.{name} must lie in [0, 1], got {value}")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class TableConfig:
+    """A horizontal, textured table top below the camera."""
+
+    enabled: bool = True
+    """Draw the table."""
+    height_m: float = 0.35
+    """Distance of the table top below the camera's optical centre (world +y) [m]."""
+    near_m: float = 0.2
+    """Nearest edge of the table along the optical axis (world z) [m]; the far edge meets the
+    background wall (or ``near_m + 3`` m without one)."""
+    width_m: float = 4.0
+    """Extent across the view (world x) [m]."""
+    style: TextureStyle = "wood"
+    """Procedural texture style: ``wood``, ``stone``, ``fabric`` or ``posters``."""
+    texture_period_m: float = 0.6
+    """Size of one texture tile on the table [m] (the texture repeats seamlessly)."""
+    texture_px: int = 1024
+    """Side of the generated texture tile [px] (16 to 4096)."""
+
+    def __post_init__(self) -> None:
+        _check_positive(
+            "table",
+            height_m=self.height_m,
+            width_m=self.width_m,
+            texture_period_m=self.texture_period_m,
+        )
+        if not (np.isfinite(self.near_m) and self.near_m >= 0):
+            raise ConfigError(f"table.near_m must be >= 0, got {self.near_m}")
+        _check_texture_px("table", self.texture_px)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class BackgroundConfig:
+    """A textured wall facing the camera, large enough to fill the view."""
+
+    enabled: bool = True
+    """Draw the wall."""
+    distance_m: float = 1.6
+    """Distance of the wall along the optical axis (world z) [m]."""
+    style: TextureStyle = "posters"
+    """Procedural texture style: ``wood``, ``stone``, ``fabric`` or ``posters``."""
+    texture_period_m: float = 0.8
+    """Size of one texture tile on the wall [m]."""
+    texture_px: int = 1024
+    """Side of the generated texture tile [px] (16 to 4096)."""
+
+    def __post_init__(self) -> None:
+        _check_positive(
+            "background", distance_m=self.distance_m, texture_period_m=self.texture_period_m
+        )
+        _check_texture_px("background", self.texture_px)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class LightConfig:
+    """One light; position and direction in the world frame (OpenCV: y down)."""
+
+    kind: Literal["directional", "spot"] = "directional"
+    """``directional`` (parallel rays along ``direction``) or ``spot`` (at ``position_m``)."""
+    position_m: tuple[float, float, float] = (0.0, -1.0, 0.0)
+    """Position [m] (spot lights; directional lights use it only for shadows)."""
+    direction: tuple[float, float, float] = (0.0, 1.0, 1.0)
+    """Direction the light points to (any length > 0)."""
+    diffuse: float = 0.6
+    """Diffuse intensity in [0, 1] (white light)."""
+    specular: float = 0.1
+    """Specular intensity in [0, 1]."""
+    cast_shadow: bool = True
+    """Casts shadows when ``[render] shadows = true``."""
+
+    def __post_init__(self) -> None:
+        d = np.asarray(self.direction, dtype=np.float64)
+        if not (np.isfinite(d).all() and np.linalg.norm(d) > 1e-9):
+            raise ConfigError(f"light direction must be a non-zero vector, got {self.direction}")
+        if not np.isfinite(np.asarray(self.position_m)).all():
+            raise ConfigError(f"light position_m must be finite, got {self.position_m}")
+        _check_unit_interval("light", diffuse=self.diffuse, specular=self.specular)
+
+
+def _default_lights() -> tuple[LightConfig, ...]:
+    return (
+        LightConfig(position_m=(-1.0, -2.0, -0.5), direction=(0.35, 1.0, 0.6), diffuse=0.55),
+        LightConfig(
+            position_m=(1.5, -1.0, 0.0),
+            direction=(-0.6, 0.5, 0.8),
+            diffuse=0.25,
+            specular=0.05,
+            cast_shadow=False,
+        ),
+    )
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class HandConfig:
+    """A simple hand occluder that holds the object: a palm and fingers made of capsules.
+
+    The hand moves rigidly with the object (the grasp does not change). The palm lies against the
+    object face ``palm_side``; the fingers lie across the ``+wrap_axis`` face and the thumb across
+    the ``-wrap_axis`` face, so the hand covers part of the object from most viewpoints.
+    """
+
+    enabled: bool = False
+    """Add the hand."""
+    palm_side: Literal["+x", "-x", "+y", "-y", "+z", "-z"] = "-x"
+    """Object-frame face the palm rests against."""
+    wrap_axis: Literal["x", "y", "z"] = "z"
+    """Object-frame axis across whose faces the fingers (+) and the thumb (-) lie; must differ
+    from the palm axis."""
+    palm_radius_m: float = 0.02
+    """Radius of the palm capsule [m]."""
+    finger_radius_m: float = 0.009
+    """Radius of each finger capsule [m]."""
+    finger_length_m: float = 0.085
+    """Length of each finger from the palm [m]."""
+    finger_count: int = 4
+    """Number of fingers besides the thumb (1 to 4)."""
+    thumb: bool = True
+    """Add a thumb on the opposite face."""
+    skin_rgb: tuple[float, float, float] = (0.86, 0.66, 0.55)
+    """Skin colour, RGB in [0, 1] (the hand is plain, untextured)."""
+
+    def __post_init__(self) -> None:
+        _check_positive(
+            "hand",
+            palm_radius_m=self.palm_radius_m,
+            finger_radius_m=self.finger_radius_m,
+            finger_length_m=self.finger_length_m,
+        )
+        if not 1 <= self.finger_count <= 4:
+            raise ConfigError(f"hand.finger_count must be 1 to 4, got {self.finger_count}")
+        if self.palm_side[1] == self.wrap_axis:
+            raise ConfigError(
+                f"hand.wrap_axis ({self.wrap_axis!r}) must differ from the palm axis "
+                f"(palm_side = {self.palm_side!r}); e.g. palm_side = '-x', wrap_axis = 'z'"
+            )
+        _check_unit_interval("hand", **{f"skin_rgb[{i}]": c for i, c in enumerate(self.skin_rgb)})
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class SceneConfig:
+    """Everything in the scene besides the object and the camera."""
+
+    table: TableConfig = field(default_factory=TableConfig)
+    """The table top."""
+    background: BackgroundConfig = field(default_factory=BackgroundConfig)
+    """The wall behind the object."""
+    lights: tuple[LightConfig, ...] = field(default_factory=_default_lights)
+    """The lights (at most 8); the default is a key light from the upper left and a fill light."""
+    ambient: float = 0.35
+    """Ambient light intensity in [0, 1] (MuJoCo's headlight ambient; the headlight itself casts
+    no diffuse light)."""
+    hand: HandConfig = field(default_factory=HandConfig)
+    """Optional hand occluder."""
+
+    def __post_init__(self) -> None:
+        if len(self.lights) > 8:
+            raise ConfigError(f"at most 8 lights are supported, got {len(self.lights)}")
+        _check_unit_interval("scene", ambient=self.ambient)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class RenderConfig:
+    """How images are rendered; ground truth is unaffected by every option here."""
+
+    shadows: bool = False
+    """Cast shadows (slower on CPU renderers)."""
+    msaa_samples: int = 0
+    """Multisample anti-aliasing samples of the colour image: 0 (off), 2, 4, 8 or 16. Depth
+    and segmentation are never anti-aliased."""
+    motion_blur_subframes: int = 1
+    """Number of renders averaged into each rgb image (1 = no motion blur). Ground truth
+    (pose, velocity, depth, mask, flow) stays at the frame time, the middle of the exposure."""
+    exposure_fraction: float = 0.5
+    """Exposure time as a fraction of the frame interval, in (0, 1] (motion blur only)."""
+    znear_m: float = 0.05
+    """Near clipping distance [m]; geometry closer than this is not drawn."""
+    zfar_m: float = 20.0
+    """Far clipping distance [m]."""
+    depth_noise: DepthNoiseConfig = field(default_factory=NoDepthNoise)
+    """Noise model of the SENSOR depth (``kind = "none" | "realsense" | "kinect_azure"``);
+    ground-truth depth stays exact."""
+
+    def __post_init__(self) -> None:
+        if self.msaa_samples not in (0, 2, 4, 8, 16):
+            raise ConfigError(
+                f"render.msaa_samples must be one of 0, 2, 4, 8, 16, got {self.msaa_samples}"
+            )
+        if self.motion_blur_subframes < 1:
+            raise ConfigError(
+                f"render.motion_blur_subframes must be >= 1 (1 = no blur), got "
+                f"{self.motion_blur_subframes}"
+            )
+        if not (np.isfinite(self.exposure_fraction) and 0 < self.exposure_fraction <= 1):
+            raise ConfigError(
+                f"render.exposure_fraction must lie in (0, 1], got {self.exposure_fraction}"
+            )
+        _check_positive("render", znear_m=self.znear_m, zfar_m=self.zfar_m)
+        if self.zfar_m <= self.znear_m * 10:
+            raise ConfigError(
+                f"render.zfar_m ({self.zfar_m}) must exceed 10 x znear_m ({self.znear_m})"
+            )
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class CameraSwayConfig:
+    """Hand-held-like camera ego-motion: smooth sinusoidal sway about the rest pose.
+
+    Each translation and rotation component ``i`` (x, y, z) follows
+    ``a_i * sin(2 pi f t + phase_i)`` with phases ``(0, 2 pi / 3, 4 pi / 3)`` for translation and
+    ``(pi / 2, pi / 2 + 2 pi / 3, pi / 2 + 4 pi / 3)`` for rotation (a rotation vector in the
+    world frame), so the camera starts already moving and velocities are exact derivatives.
+    """
+
+    kind: Literal["sway"] = "sway"
+    """Motion model (only ``sway`` so far)."""
+    amplitude_m: tuple[float, float, float] = (0.03, 0.02, 0.02)
+    """Translation amplitude per world axis [m]."""
+    amplitude_rad: tuple[float, float, float] = (0.03, 0.04, 0.02)
+    """Rotation-vector amplitude per world axis [rad]."""
+    frequency_hz: float = 0.5
+    """Sway frequency [Hz]."""
+
+    def __post_init__(self) -> None:
+        values = np.asarray(self.amplitude_m + self.amplitude_rad, dtype=np.float64)
+        if not (np.isfinite(values).all() and (values >= 0).all()):
+            raise ConfigError("camera.motion amplitudes must be finite and >= 0")
+        if float(np.linalg.norm(self.amplitude_rad)) > 0.5:
+            raise ConfigError(
+                f"camera.motion.amplitude_rad {self.amplitude_rad} is too large (norm > 0.5 rad)"
+            )
+        _check_positive("camera.motion", frequency_hz=self.frequency_hz)
+
+
+CameraMotionConfig = CameraSwayConfig
+"""Camera ego-motion models (a tagged union by ``kind`` once there are more)."""
