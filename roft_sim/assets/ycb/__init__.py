@@ -1,0 +1,1 @@
+"""Data package holding ``manifest.toml``, the registry of YCB objects."""
