@@ -1,0 +1,602 @@
+"""One HDF5 file per sequence: streaming writer and lazy reader.
+
+Layout of ``<root>/<sequence_name>.h5`` (every dataset carries ``units`` and ``description``
+attributes; the root carries the metadata; see docs/formats.md)::
+
+    /time_s (N,) f8                /T_world_cam (N,4,4) f8
+    /rgb (N,H,W,3) u1              /depth_m (N,H,W) f4            chunked (1, ...) per frame
+    /gt/T_cam_obj (N,4,4) f8       /gt/v_obj_mps (N,3) f8         /gt/w_radps (N,3) f8
+    /masks/<set>/mask (N,H,W) u1 0/1     /masks/<set>/present (N,) u1   (sets gt, gt_full, ...)
+    /flow/<set>/flow (N,Hg,Wg,2) f4 [px] or i2 [px*32]            /flow/<set>/present (N,) u1
+    /flow/<set>/valid (N,Hg,Wg) u1       /flow/<set>/valid_present (N,) u1
+    /poses/<set>/T_cam_obj (N,4,4) f8    /poses/<set>/valid (N,) u1
+    /model/vertices_m (V,3) f8  /model/faces (F,3) i8  /model/model_points_m (M,3) f8
+
+Crash safety and parallel workers: frames are first written as small per-frame HDF5 files in
+``<name>.h5.parts/`` (each written to memory and renamed into place, so a crash leaves every
+completed frame readable); :meth:`Hdf5Writer.finalize` copies their compressed chunks unchanged
+into a temp file (``write_direct_chunk``, no recompression) and renames it to ``<name>.h5``.
+The ``.h5`` therefore exists only when complete; a ``.parts`` folder marks an unfinished one.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+from numpy.typing import NDArray
+
+from roft_sim.datasets.atomic_files import atomic_write_bytes, temp_path_for
+from roft_sim.datasets.base import GT_MASK_SET, DetectorPoses
+from roft_sim.datasets.fast_ycb_codec import S10_5_SCALE
+from roft_sim.datasets.frames import GT_FULL_MASK_SET, DatasetFrame
+from roft_sim.datasets.metadata import dumps_json
+from roft_sim.datasets.writer_base import StreamingWriter, WriterSettings
+from roft_sim.errors import ConfigError, DatasetFormatError, located
+from roft_sim.geometry.camera import CameraIntrinsics
+from roft_sim.records import FlowField, ObjectModel, PoseTrack
+
+F64 = NDArray[np.float64]
+F32 = NDArray[np.float32]
+U8 = NDArray[np.uint8]
+Bool = NDArray[np.bool_]
+
+__all__ = ["Hdf5Writer", "Hdf5Sequence", "HDF5_FORMAT_NAME", "HDF5_COMPRESSIONS"]
+
+HDF5_FORMAT_NAME = "roft_sim-hdf5"
+"""Value of the root attribute ``format`` of our files."""
+HDF5_COMPRESSIONS = ("gzip", "lzf")
+_H5_ERRORS = (OSError, KeyError, ValueError, RuntimeError, TypeError, IndexError)
+
+
+def _filters(compression: str, level: int, *, shuffle: bool) -> dict[str, Any]:
+    if compression == "gzip":
+        return {"compression": "gzip", "compression_opts": level, "shuffle": shuffle}
+    return {"compression": "lzf", "shuffle": shuffle}
+
+
+class Hdf5Writer(StreamingWriter):
+    """Streams one sequence into ``<root>/<sequence_name>.h5`` (see module doc).
+
+    Options (``settings.options``): ``compression`` (``gzip`` or ``lzf``) and
+    ``compression_level`` (gzip 1-9).
+    """
+
+    FORMAT = "hdf5"
+
+    def __init__(
+        self,
+        root: Path,
+        settings: WriterSettings,
+        *,
+        object_model: ObjectModel | None,
+        resume: bool,
+    ) -> None:
+        compression = settings.options.get("compression", "gzip")
+        level = settings.options.get("compression_level", 4)
+        if compression not in HDF5_COMPRESSIONS:
+            raise ConfigError(f"hdf5 compression {compression!r}: expected one of gzip, lzf")
+        if not isinstance(level, int) or not 1 <= level <= 9:
+            raise ConfigError(f"hdf5 compression_level must be an int in 1..9, got {level!r}")
+        root = Path(root)
+        super().__init__(
+            sequence_path=root / f"{settings.sequence_name}.h5",
+            parts_dir=root / f"{settings.sequence_name}.h5.parts",
+            settings=settings,
+            object_model=object_model,
+            resume=resume,
+        )
+
+    # ------------------------------------------------------------------------- hooks
+    def _metadata_path(self) -> Path:
+        return self.sequence_path
+
+    def _finished_n_frames(self) -> int | None:
+        with h5py.File(self.sequence_path, "r") as f:
+            return int(f.attrs["n_frames"])
+
+    def _exists_non_empty(self) -> bool:
+        return self.sequence_path.exists()
+
+    def _extra_package_names(self) -> tuple[str, ...]:
+        return ("h5py",)
+
+    def _format_options(self) -> dict[str, Any]:
+        return {
+            "compression": self.settings.options.get("compression", "gzip"),
+            "compression_level": self.settings.options.get("compression_level", 4),
+            "hdf5_library": h5py.version.hdf5_version,
+        }
+
+    def _format_conventions(self) -> dict[str, str]:
+        return {
+            "layout": "see the 'description' and 'units' attributes of every dataset",
+            "booleans": "stored as uint8 0/1",
+            "flow_s10_5": "int16 flow datasets hold px * 32 (attribute scale = 1/32)",
+        }
+
+    def _kw(self, *, shuffle: bool) -> dict[str, Any]:
+        opts = self.settings.options
+        return _filters(
+            opts.get("compression", "gzip"), opts.get("compression_level", 4), shuffle=shuffle
+        )
+
+    def _frame_arrays(self, frame: DatasetFrame) -> dict[str, tuple[np.ndarray, bool]]:
+        """Per-frame bulk arrays: HDF5 path -> (array without the frame axis, shuffle)."""
+        arrays: dict[str, tuple[np.ndarray, bool]] = {
+            "rgb": (frame.rgb, False),
+            "depth_m": (frame.depth_m, True),
+        }
+        masks = {GT_MASK_SET: frame.gt_mask, GT_FULL_MASK_SET: frame.gt_mask_full}
+        masks.update(frame.detector_masks)
+        for name, m in masks.items():
+            if m is not None:
+                arrays[f"masks/{name}/mask"] = (m.view(np.uint8), False)
+        for name, flow in frame.flows.items():
+            if self.settings.flow_encoding(name) == "s10.5":
+                q = np.rint(flow.flow_px.astype(np.float64) * S10_5_SCALE)
+                if q.size and (q.min() < -32768 or q.max() > 32767):
+                    raise ValueError(
+                        f"flow {name!r} of frame {frame.k} does not fit S10.5 (|flow| < 1024 px)"
+                    )
+                arrays[f"flow/{name}/flow"] = (q.astype(np.int16), True)
+            else:
+                arrays[f"flow/{name}/flow"] = (flow.flow_px, True)
+            if flow.valid is not None:
+                arrays[f"flow/{name}/valid"] = (flow.valid.view(np.uint8), False)
+        return arrays
+
+    def _write_frame_files(self, frame: DatasetFrame) -> dict[str, Any]:
+        arrays = self._frame_arrays(frame)
+        buffer = io.BytesIO()
+        with h5py.File(buffer, "w") as f:
+            for key, (a, shuffle) in arrays.items():
+                f.create_dataset(
+                    key, data=a[None], chunks=(1, *a.shape), **self._kw(shuffle=shuffle)
+                )
+        atomic_write_bytes(self.parts_dir / f"frame_{frame.k:06d}.h5", buffer.getvalue())
+        return {"arrays": {k: [str(a.dtype), list(a.shape)] for k, (a, _) in arrays.items()}}
+
+    def _write_model(self, model: ObjectModel) -> None:
+        buffer = io.BytesIO()
+        with h5py.File(buffer, "w") as f:
+            f.attrs["name"] = model.name
+            f.create_dataset("vertices_m", data=model.vertices_m.astype(np.float64))
+            f.create_dataset("faces", data=model.faces.astype(np.int64))
+            f.create_dataset("model_points_m", data=model.model_points_m.astype(np.float64))
+        atomic_write_bytes(self.parts_dir / "model.h5", buffer.getvalue())
+
+    # ---------------------------------------------------------------------- assembly
+    def _assemble(self, records: list[dict[str, Any]], metadata: dict[str, Any]) -> None:
+        s = self.settings
+        n = s.n_frames
+        h, w = s.intrinsics.shape
+        layouts: dict[str, tuple[str, tuple[int, ...]]] = {}
+        for r in records:
+            for key, (dtype, shape) in r["arrays"].items():
+                layouts.setdefault(key, (dtype, tuple(shape)))
+        tmp = temp_path_for(self.sequence_path)
+        try:
+            with h5py.File(tmp, "w") as f:
+                self._write_root(f, records, metadata)
+                targets = {}
+                for key, (dtype, shape) in sorted(layouts.items()):
+                    shuffle = dtype != "uint8"
+                    targets[key] = f.create_dataset(
+                        key,
+                        shape=(n, *shape),
+                        dtype=dtype,
+                        chunks=(1, *shape),
+                        fillvalue=0,
+                        **self._kw(shuffle=shuffle),
+                    )
+                    _describe(targets[key], key, dtype)
+                for r in records:
+                    k = r["k"]
+                    with h5py.File(self.parts_dir / f"frame_{k:06d}.h5", "r") as part:
+                        for key in r["arrays"]:
+                            source = part[key]
+                            mask, chunk = source.id.read_direct_chunk((0,) * source.ndim)
+                            targets[key].id.write_direct_chunk(
+                                (k,) + (0,) * (source.ndim - 1), chunk, mask
+                            )
+                self._write_presence(f, records, layouts, metadata)
+                self._write_model_group(f)
+            os.replace(tmp, self.sequence_path)
+        except BaseException:
+            tmp.unlink(missing_ok=True)
+            raise
+
+    def _write_root(
+        self, f: h5py.File, records: list[dict[str, Any]], metadata: dict[str, Any]
+    ) -> None:
+        s = self.settings
+        f.attrs["format"] = HDF5_FORMAT_NAME
+        f.attrs["format_version"] = metadata["format_version"]
+        f.attrs["sequence_name"] = s.sequence_name
+        f.attrs["object_name"] = s.object_name
+        f.attrs["n_frames"] = s.n_frames
+        f.attrs["fps"] = s.fps
+        f.attrs["width_px"] = s.intrinsics.width_px
+        f.attrs["height_px"] = s.intrinsics.height_px
+        f.attrs["K"] = s.intrinsics.K
+        f.attrs["metadata_json"] = dumps_json(metadata)
+        _put(f, "time_s", np.array([r["t_s"] for r in records]), "s", "camera time stamp t_k")
+        _put(
+            f,
+            "T_world_cam",
+            np.array([r["T_world_cam"] for r in records]),
+            "m",
+            "camera pose in the world per frame (4x4, p_world = T p_cam)",
+        )
+        gt = metadata["ground_truth"]
+        if gt["poses"]:
+            _put(
+                f,
+                "gt/T_cam_obj",
+                np.array([r["gt_T_cam_obj"] for r in records]),
+                "m",
+                "ground-truth object pose in the OpenCV camera frame (4x4, p_cam = T p_obj)",
+            )
+        if gt["velocities"]:
+            _put(
+                f,
+                "gt/v_obj_mps",
+                np.array([r["gt_v_obj_mps"] for r in records]),
+                "m/s",
+                "velocity of the object origin, d/dt t_cam_obj, camera frame",
+            )
+            _put(
+                f,
+                "gt/w_radps",
+                np.array([r["gt_w_radps"] for r in records]),
+                "rad/s",
+                "angular velocity, camera frame: dR_cam_obj/dt = [w]x R_cam_obj",
+            )
+        for name in metadata["sets"]["pose"]:
+            poses = [r["detector_poses"][name] for r in records]
+            _put(
+                f,
+                f"poses/{name}/T_cam_obj",
+                np.array([np.eye(4) if T is None else T for T in poses]),
+                "m",
+                "detector object pose per frame (identity where valid = 0)",
+            )
+            _put(
+                f,
+                f"poses/{name}/valid",
+                np.array([T is not None for T in poses], np.uint8),
+                "",
+                "1 = the detector returned a pose on this frame, 0 = miss",
+            )
+        flow_sets = metadata["sets"]["flow"]
+        for name, info in flow_sets.items():
+            g = f.require_group(f"flow/{name}")
+            g.attrs["grid_px"] = info["grid_px"]
+            g.attrs["encoding"] = info["encoding"]
+
+    def _write_presence(
+        self,
+        f: h5py.File,
+        records: list[dict[str, Any]],
+        layouts: Mapping[str, tuple[str, tuple[int, ...]]],
+        metadata: dict[str, Any],
+    ) -> None:
+        gt = metadata["ground_truth"]
+        mask_sets = [GT_MASK_SET] if gt["masks"] else []
+        mask_sets += [GT_FULL_MASK_SET] if gt["full_masks"] else []
+        for name in mask_sets + list(metadata["sets"]["mask"]):
+            key = f"masks/{name}/mask"
+            if key not in layouts:  # a detector that missed on every frame
+                shape = self.settings.intrinsics.shape
+                f.create_dataset(
+                    key,
+                    shape=(len(records), *shape),
+                    dtype=np.uint8,
+                    chunks=(1, *shape),
+                    fillvalue=0,
+                    **self._kw(shuffle=False),
+                )
+                _describe(f[key], key, "uint8")
+            present = np.array([key in r["arrays"] for r in records], np.uint8)
+            _put(f, f"masks/{name}/present", present, "", "1 = a mask is stored for this frame")
+        for name in metadata["sets"]["flow"]:
+            for leaf, flag in (("flow", "present"), ("valid", "valid_present")):
+                key = f"flow/{name}/{leaf}"
+                if key in layouts:
+                    present = np.array([key in r["arrays"] for r in records], np.uint8)
+                    _put(f, f"flow/{name}/{flag}", present, "", f"1 = {leaf} stored for frame")
+
+    def _write_model_group(self, f: h5py.File) -> None:
+        path = self.parts_dir / "model.h5"
+        if not path.is_file():
+            return
+        with h5py.File(path, "r") as m:
+            g = f.create_group("model")
+            g.attrs["name"] = m.attrs["name"]
+            _put(g, "vertices_m", m["vertices_m"][()], "m", "mesh vertices, object frame")
+            _put(g, "faces", m["faces"][()], "", "triangles, 0-based vertex indices")
+            _put(
+                g,
+                "model_points_m",
+                m["model_points_m"][()],
+                "m",
+                "model points for ADD metrics, object frame",
+            )
+
+
+def _put(group: h5py.Group, key: str, data: np.ndarray, units: str, description: str) -> None:
+    d = group.create_dataset(key, data=data)
+    d.attrs["units"] = units
+    d.attrs["description"] = description
+
+
+_DESCRIPTIONS = {
+    "rgb": ("", "RGB image per frame, uint8, RGB channel order"),
+    "depth_m": ("m", "z-depth per frame, float32, 0 = no measurement"),
+    "mask": ("", "mask per frame, uint8 0/1 (1 = object); see 'present' for detector misses"),
+    "flow": ("px", "flow F_k from frame k-1 to k, (du, dv); frame 0 holds zeros"),
+    "valid": ("", "1 where the flow vector is meaningful"),
+}
+
+
+def _describe(d: h5py.Dataset, key: str, dtype: str) -> None:
+    units, description = _DESCRIPTIONS[key.rsplit("/", 1)[-1]]
+    if key.endswith("/flow") and dtype == "int16":
+        units, description = "px/32", description + "; S10.5 fixed point: divide by 32"
+        d.attrs["scale"] = 1.0 / S10_5_SCALE
+    d.attrs["units"] = units
+    d.attrs["description"] = description
+
+
+class Hdf5Sequence:
+    """A sequence in one of our HDF5 files, read lazily (implements ``Sequence``).
+
+    The file is opened on first use and kept open; the object pickles (it reopens the file in
+    the new process). Use :meth:`close` or ``with`` to release the file.
+
+    Raises:
+        DatasetFormatError: not one of our HDF5 files, a missing dataset, or corrupt data
+            (naming the file, the dataset and the frame).
+    """
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        parts = self.path.with_name(self.path.name + ".parts")
+        if not self.path.is_file():
+            if parts.is_dir():
+                raise DatasetFormatError(
+                    f"{located(self.path)} is unfinished: its frames are in {parts.name}/ and "
+                    "finalize() was not run; resume the generator or call finalize()"
+                )
+            raise DatasetFormatError(f"HDF5 sequence file {located(self.path)} is missing")
+        self._file: h5py.File | None = None
+        with self._guard("the root attributes"):
+            f = self._h5()
+            if f.attrs.get("format") != HDF5_FORMAT_NAME:
+                raise DatasetFormatError(
+                    f"{located(self.path)} is an HDF5 file but not a roft_sim sequence (root "
+                    f"attribute format = {f.attrs.get('format')!r}, expected "
+                    f"{HDF5_FORMAT_NAME!r})"
+                )
+            self._n = int(f.attrs["n_frames"])
+            self._fps = int(f.attrs["fps"])
+            self._name = str(f.attrs["sequence_name"])
+            self._object_name = str(f.attrs["object_name"])
+            self._metadata = json.loads(str(f.attrs["metadata_json"]))
+            self._intrinsics = CameraIntrinsics.from_matrix(
+                np.asarray(f.attrs["K"], dtype=np.float64),
+                int(f.attrs["width_px"]),
+                int(f.attrs["height_px"]),
+            )
+            self._t_s = self._small("time_s", (self._n,))
+            self._T_world_cam = self._small("T_world_cam", (self._n, 4, 4))
+            for key in ("rgb", "depth_m"):
+                want = (self._n, *self._intrinsics.shape) + ((3,) if key == "rgb" else ())
+                if f[key].shape != want:
+                    raise DatasetFormatError(
+                        f"{located(self.path)}: dataset /{key} has shape {f[key].shape}, "
+                        f"expected {want}"
+                    )
+
+    # -------------------------------------------------------------------------- file
+    def _h5(self) -> h5py.File:
+        if self._file is None:
+            self._file = h5py.File(self.path, "r")
+        return self._file
+
+    def close(self) -> None:
+        """Closes the file (it is reopened on the next read)."""
+        if self._file is not None:
+            self._file.close()
+            self._file = None
+
+    def __enter__(self) -> Hdf5Sequence:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = dict(self.__dict__)
+        state["_file"] = None
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+
+    def _guard(self, what: str):
+        return _Guard(self.path, what)
+
+    def _small(self, key: str, shape: tuple[int, ...]) -> np.ndarray:
+        f = self._h5()
+        if key not in f:
+            raise DatasetFormatError(f"{located(self.path)} has no dataset /{key}")
+        data = np.asarray(f[key][()])
+        if data.shape != shape:
+            raise DatasetFormatError(
+                f"{located(self.path)}: /{key} has shape {data.shape}, expected {shape}"
+            )
+        if data.dtype.kind == "f" and not np.isfinite(data).all():
+            raise DatasetFormatError(f"{located(self.path)}: /{key} holds NaN/inf values")
+        return data
+
+    def _check_k(self, k: int) -> int:
+        if not 0 <= k < self._n:
+            raise IndexError(f"frame {k} is outside 0..{self._n - 1} of {located(self.path)}")
+        return int(k)
+
+    def _groups(self, key: str) -> tuple[str, ...]:
+        with self._guard(f"/{key}"):
+            f = self._h5()
+            return tuple(sorted(f[key].keys())) if key in f else ()
+
+    # ------------------------------------------------------------------------ Sequence
+    @property
+    def name(self) -> str:
+        return self._name
+
+    @property
+    def object_name(self) -> str:
+        return self._object_name
+
+    @property
+    def intrinsics(self) -> CameraIntrinsics:
+        return self._intrinsics
+
+    @property
+    def fps(self) -> int:
+        return self._fps
+
+    def __len__(self) -> int:
+        return self._n
+
+    def time_s(self, k: int) -> float:
+        return float(self._t_s[self._check_k(k)])
+
+    def rgb(self, k: int) -> U8:
+        k = self._check_k(k)
+        with self._guard(f"/rgb frame {k}"):
+            return np.asarray(self._h5()["rgb"][k], dtype=np.uint8)
+
+    def depth(self, k: int) -> F32:
+        k = self._check_k(k)
+        with self._guard(f"/depth_m frame {k}"):
+            depth = np.asarray(self._h5()["depth_m"][k], dtype=np.float32)
+        if not np.isfinite(depth).all():
+            raise DatasetFormatError(f"{located(self.path)}: /depth_m frame {k} has NaN/inf")
+        return depth
+
+    def flow_sets(self) -> tuple[str, ...]:
+        return self._groups("flow")
+
+    def flow(self, k: int, flow_set: str) -> FlowField | None:
+        if flow_set not in self.flow_sets():
+            raise KeyError(f"no flow set {flow_set!r} in {self.path}; sets: {self.flow_sets()}")
+        if self._check_k(k) == 0:
+            return None
+        with self._guard(f"/flow/{flow_set} frame {k}"):
+            g = self._h5()["flow"][flow_set]
+            if not g["present"][k]:
+                raise DatasetFormatError(f"{located(self.path)}: /flow/{flow_set} lacks frame {k}")
+            raw = np.asarray(g["flow"][k])
+            flow = (
+                raw.astype(np.float32) / np.float32(S10_5_SCALE)
+                if raw.dtype == np.int16
+                else raw.astype(np.float32)
+            )
+            valid = None
+            if "valid" in g and g["valid_present"][k]:
+                valid = np.asarray(g["valid"][k]) != 0
+            grid = int(g.attrs["grid_px"])
+        if not np.isfinite(flow).all():
+            raise DatasetFormatError(f"{located(self.path)}: /flow/{flow_set} frame {k} has NaN")
+        return FlowField(flow_px=flow, from_k=k - 1, to_k=k, grid_px=grid, valid=valid)
+
+    def mask_sets(self) -> tuple[str, ...]:
+        names = self._groups("masks")
+        first = [n for n in (GT_MASK_SET, GT_FULL_MASK_SET) if n in names]
+        return tuple(first + [n for n in names if n not in first])
+
+    def mask(self, k: int, mask_set: str) -> Bool | None:
+        if mask_set not in self.mask_sets():
+            raise KeyError(f"no mask set {mask_set!r} in {self.path}; sets: {self.mask_sets()}")
+        k = self._check_k(k)
+        with self._guard(f"/masks/{mask_set} frame {k}"):
+            g = self._h5()["masks"][mask_set]
+            if not g["present"][k]:
+                return None
+            return np.asarray(g["mask"][k]) != 0
+
+    def pose_sets(self) -> tuple[str, ...]:
+        return self._groups("poses")
+
+    def detector_poses(self, pose_set: str) -> DetectorPoses:
+        if pose_set not in self.pose_sets():
+            raise KeyError(f"no pose set {pose_set!r} in {self.path}; sets: {self.pose_sets()}")
+        with self._guard(f"/poses/{pose_set}"):
+            T = self._small(f"poses/{pose_set}/T_cam_obj", (self._n, 4, 4))
+            valid = self._small(f"poses/{pose_set}/valid", (self._n,)) != 0
+        return DetectorPoses(T_cam_obj=T, valid=valid)
+
+    def ground_truth(self) -> PoseTrack | None:
+        with self._guard("/gt"):
+            if "gt" not in self._h5():
+                return None
+            T = self._small("gt/T_cam_obj", (self._n, 4, 4))
+            if "v_obj_mps" in self._h5()["gt"]:
+                v = self._small("gt/v_obj_mps", (self._n, 3))
+                w = self._small("gt/w_radps", (self._n, 3))
+            else:
+                v = np.full((self._n, 3), np.nan)
+                w = np.full((self._n, 3), np.nan)
+        return PoseTrack(t_s=self._t_s.copy(), T_cam_obj=T, v_obj_mps=v, w_radps=w)
+
+    def camera_poses(self) -> F64:
+        return self._T_world_cam.copy()
+
+    def object_model(self) -> ObjectModel | None:
+        with self._guard("/model"):
+            f = self._h5()
+            if "model" not in f:
+                return None
+            g = f["model"]
+            return ObjectModel(
+                name=str(g.attrs["name"]),
+                vertices_m=np.asarray(g["vertices_m"][()], dtype=np.float64),
+                faces=np.asarray(g["faces"][()], dtype=np.int64),
+                model_points_m=np.asarray(g["model_points_m"][()], dtype=np.float64),
+            )
+
+    def metadata(self) -> Mapping[str, Any]:
+        return dict(self._metadata)
+
+    def __repr__(self) -> str:
+        return f"Hdf5Sequence({str(self.path)!r}, {self._n} frames)"
+
+
+class _Guard:
+    """Turns h5py/HDF5 errors into DatasetFormatError naming the file and what was read."""
+
+    def __init__(self, path: Path, what: str) -> None:
+        self.path, self.what = path, what
+
+    def __enter__(self) -> None:
+        return None
+
+    def __exit__(self, exc_type: type | None, exc: BaseException | None, tb: object) -> bool:
+        if (
+            exc is not None
+            and isinstance(exc, _H5_ERRORS)
+            and not isinstance(exc, DatasetFormatError | IndexError)
+        ):
+            raise DatasetFormatError(
+                f"{located(self.path)}: cannot read {self.what}: {type(exc).__name__}: {exc}"
+            ) from None
+        return False

@@ -1,0 +1,146 @@
+"""PNG encoding of RGB images, masks and 16-bit depth, with errors that name the file.
+
+RGB is ``(H, W, 3)`` uint8 in RGB order in memory; OpenCV's BGR order appears only here. Masks are
+``(H, W)`` bool in memory and single-channel 8-bit 0/255 on disk; reading follows ROFT's
+binarisation (any value > 1 is foreground), so detector masks with soft, resized edges read as
+ROFT reads them. Encoding is deterministic (fixed zlib level, no time stamps).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from roft_sim.errors import DatasetFormatError, located
+
+__all__ = [
+    "encode_png_rgb",
+    "decode_png_rgb",
+    "encode_png_mask",
+    "decode_png_mask",
+    "encode_png_u16",
+    "decode_png_u16",
+    "read_file_bytes",
+    "PNG_COMPRESSION",
+]
+
+PNG_COMPRESSION = 3
+"""zlib level of every PNG we write (0-9); fixed so that files are byte-identical across runs."""
+
+_PNG_PARAMS = [cv2.IMWRITE_PNG_COMPRESSION, PNG_COMPRESSION]
+
+
+def read_file_bytes(path: Path, what: str) -> bytes:
+    """Reads a whole file; a missing file raises DatasetFormatError naming it and ``what``."""
+    try:
+        return path.read_bytes()
+    except FileNotFoundError:
+        raise DatasetFormatError(f"{what} file {located(path)} is missing") from None
+    except IsADirectoryError:
+        raise DatasetFormatError(f"{what} path {located(path)} is a folder, not a file") from None
+
+
+def _encode(image: np.ndarray) -> bytes:
+    ok, buf = cv2.imencode(".png", image, _PNG_PARAMS)
+    if not ok:  # pragma: no cover - OpenCV fails only on unsupported dtypes, checked by callers
+        raise ValueError(f"OpenCV could not encode a {image.dtype} {image.shape} image as PNG")
+    return buf.tobytes()
+
+
+def _decode(data: bytes, path: Path, what: str) -> np.ndarray:
+    if data[:8] != b"\x89PNG\r\n\x1a\n":
+        raise DatasetFormatError(
+            f"{what} file {located(path)} is not a PNG (it starts with {data[:8]!r})"
+        )
+    try:
+        image = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_UNCHANGED)
+    except cv2.error as e:
+        raise DatasetFormatError(f"{what} file {located(path)} is a corrupt PNG: {e}") from None
+    if image is None:
+        raise DatasetFormatError(f"{what} file {located(path)} is a corrupt or truncated PNG")
+    return image
+
+
+def encode_png_rgb(rgb: NDArray[np.uint8]) -> bytes:
+    """PNG bytes of an ``(H, W, 3)`` uint8 RGB image (stored as 8-bit colour)."""
+    return _encode(np.ascontiguousarray(rgb[..., ::-1]))
+
+
+def decode_png_rgb(
+    data: bytes, path: Path, *, shape: tuple[int, int] | None = None
+) -> NDArray[np.uint8]:
+    """``(H, W, 3)`` uint8 RGB from PNG bytes (grey and RGBA are converted; 16-bit is refused).
+
+    Args:
+        data: the file's bytes.
+        path: the file, for messages.
+        shape: expected ``(H, W)``, or None.
+    """
+    image = _decode(data, path, "rgb image")
+    if image.dtype != np.uint8:
+        raise DatasetFormatError(
+            f"rgb image {located(path)} has {image.dtype} pixels; expected 8-bit colour"
+        )
+    if image.ndim == 2:
+        image = cv2.cvtColor(image, cv2.COLOR_GRAY2RGB)
+    elif image.shape[2] == 4:
+        image = cv2.cvtColor(image, cv2.COLOR_BGRA2RGB)
+    else:
+        image = np.ascontiguousarray(image[..., ::-1])
+    _check_shape(image.shape[:2], shape, path, "rgb image")
+    return image
+
+
+def encode_png_mask(mask: NDArray[np.bool_]) -> bytes:
+    """PNG bytes of an ``(H, W)`` bool mask as single-channel 8-bit 0/255."""
+    return _encode(mask.astype(np.uint8) * np.uint8(255))
+
+
+def decode_png_mask(
+    data: bytes, path: Path, *, shape: tuple[int, int] | None = None
+) -> NDArray[np.bool_]:
+    """``(H, W)`` bool mask from an 8-bit PNG: True where the value is > 1 (ROFT's threshold).
+
+    Colour masks are converted to grey first, as ROFT does.
+    """
+    image = _decode(data, path, "mask")
+    if image.dtype != np.uint8:
+        raise DatasetFormatError(
+            f"mask {located(path)} has {image.dtype} pixels; expected 8-bit 0/255"
+        )
+    if image.ndim == 3:
+        code = cv2.COLOR_BGRA2GRAY if image.shape[2] == 4 else cv2.COLOR_BGR2GRAY
+        image = cv2.cvtColor(image, code)
+    _check_shape(image.shape[:2], shape, path, "mask")
+    return image > 1
+
+
+def encode_png_u16(image: NDArray[np.uint16]) -> bytes:
+    """PNG bytes of an ``(H, W)`` uint16 image (BOP depth)."""
+    if image.dtype != np.uint16 or image.ndim != 2:
+        raise ValueError(f"expected an (H, W) uint16 image, got {image.dtype} {image.shape}")
+    return _encode(image)
+
+
+def decode_png_u16(
+    data: bytes, path: Path, *, shape: tuple[int, int] | None = None
+) -> NDArray[np.uint16]:
+    """``(H, W)`` uint16 image from a 16-bit single-channel PNG."""
+    image = _decode(data, path, "16-bit depth image")
+    if image.dtype != np.uint16 or image.ndim != 2:
+        raise DatasetFormatError(
+            f"depth image {located(path)} is {image.dtype} with shape {image.shape}; expected "
+            "a single-channel 16-bit PNG"
+        )
+    _check_shape(image.shape, shape, path, "depth image")
+    return image
+
+
+def _check_shape(got: tuple[int, ...], want: tuple[int, int] | None, path: Path, what: str) -> None:
+    if want is not None and tuple(got) != tuple(want):
+        raise DatasetFormatError(
+            f"{what} {located(path)} is {got[1]}x{got[0]} px; the camera is {want[1]}x{want[0]}"
+        )
