@@ -152,3 +152,47 @@ def render_posed(intrinsics, mesh, T_cam_obj, *, scene=None, render=None, segmen
         r.update(data, built.camera_id)
         out = r.render(rgb=True, depth=True, segmentation=segmentation)
     return built, out
+
+
+def small_scenario(**overrides):
+    """A 160x120 Scenario built in code; the trajectory config is a placeholder (tests pass a
+    stand-in trajectory to the renderer)."""
+    from roft_sim.scenario import CameraConfig, ObjectConfig, Scenario
+    from roft_sim.scene.config import BackgroundConfig, SceneConfig, TableConfig
+    from roft_sim.trajectories import SyntheticMotionConfig
+
+    camera = overrides.pop(
+        "camera",
+        CameraConfig(
+            width_px=160, height_px=120, fx_px=180.0, fy_px=180.0, cx_px=79.5, cy_px=59.5, fps=30
+        ),
+    )
+    scene = overrides.pop(
+        "scene",
+        SceneConfig(
+            table=TableConfig(texture_px=256, height_m=0.25),
+            background=BackgroundConfig(texture_px=256, distance_m=1.2),
+        ),
+    )
+    fields = dict(
+        name="test",
+        camera=camera,
+        object=ObjectConfig(name="stand_in_box"),
+        trajectory=SyntheticMotionConfig(),
+        scene=scene,
+        seed=11,
+        frames=12,
+    )
+    fields.update(overrides)
+    return Scenario(**fields)
+
+
+def open_renderer(scenario, *, trajectory=None, mesh=None, **kwargs):
+    from roft_sim.render import SceneRenderer
+
+    return SceneRenderer(
+        scenario,
+        object_assets=StandInAssets(mesh if mesh is not None else grid_box_mesh()),
+        trajectory=trajectory if trajectory is not None else SinusoidalTrajectory(),
+        **kwargs,
+    )
