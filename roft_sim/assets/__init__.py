@@ -12,6 +12,12 @@
 See docs/assets.md.
 """
 
+from roft_sim.assets.install import (
+    OFFICIAL_YCB_BASE_URL,
+    default_cache_dir,
+    install_assets,
+    official_archive_url,
+)
 from roft_sim.assets.meshes import TexturedMesh, model_point_seed, sample_surface_points
 from roft_sim.assets.objects import (
     ObjectAssets,
@@ -33,16 +39,20 @@ __all__ = [
     "AssetNotFoundError",
     "DatasetFormatError",
     "NvduAlignment",
+    "OFFICIAL_YCB_BASE_URL",
     "ObjectAssets",
     "ObjectInfo",
     "TexturedMesh",
     "UnknownObjectError",
+    "default_cache_dir",
     "find_ycb_mesh",
     "get_object_info",
+    "install_assets",
     "list_objects",
     "load_object",
     "model_point_seed",
     "object_registry",
+    "official_archive_url",
     "sample_surface_points",
     "ycb_mesh_candidates",
 ]
