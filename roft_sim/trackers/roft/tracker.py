@@ -1,0 +1,392 @@
+"""The ROFT tracker: mask synchronisation, velocity KF, pose UKF, pose synchronisation, outlier
+rejection (reference report section 1.3 for the order of operations).
+
+Per camera frame k:
+
+1. the mask synchroniser advances to k (propagating with F_k, or warping a delayed mask that
+   arrived);
+2. the velocity KF predicts and corrects with F_k measured on the mask and depth of frame k-1;
+   its mean is frame k's velocity measurement for the UKF (the reference feeds it every frame,
+   also when the KF skipped its correction; a dropped camera frame gives none);
+3. the depth samples the outlier test needs are taken from frame k (mask and depth);
+4. arriving poses are filed under their capture frame c (the current frame when pose sync is
+   off); the UKF restarts from the belief stored at c-1 and replays predict/correct over the
+   buffered velocity measurements and poses up to k, storing the belief at EVERY frame (the
+   reference keeps only alternate poses in the long-term chain, its quirk 5.4a, and skips frames
+   after a missed pose, quirk 5.4b: neither is reproduced). A pose correction computes both
+   candidates (with and without the pose) and keeps the pose only if the depth test passes.
+
+The replayed result equals, to rounding, the result of a run in which every pose arrived
+without delay. Poses older than the horizon, from the future, duplicated (same detection_id) or
+non-finite are dropped and reported. The filter starts from ``reset(initial)`` or, without one,
+from the earliest-captured pose received (re-initialised if an even earlier one arrives within
+the horizon), so the result does not depend on the order of arrival.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from roft_sim.errors import PluginError
+from roft_sim.geometry.se3 import transform_from_pq
+from roft_sim.geometry.so3 import matrix_from_quat, quat_from_matrix
+from roft_sim.records import (
+    Estimate,
+    MaskDetection,
+    Observation,
+    PoseDetection,
+)
+from roft_sim.trackers.base import TrackerContext
+from roft_sim.trackers.roft.config import RoftConfig
+from roft_sim.trackers.roft.mask_sync import MaskSynchroniser, PixelSet
+from roft_sim.trackers.roft.outlier_rejection import (
+    DepthOutlierTest,
+    DepthSamples,
+    depth_samples,
+)
+from roft_sim.trackers.roft.pose_ukf import ESTIMATE_FROM_UKF_INDEX, PoseBelief, PoseUKF
+from roft_sim.trackers.roft.velocity_kf import VelocityKF, flow_measurement
+
+F64 = NDArray[np.float64]
+
+__all__ = ["RoftTracker"]
+
+
+@dataclass(frozen=True, slots=True)
+class _Frame:
+    """What the replay needs from one processed camera frame."""
+
+    dt_s: float
+    """Time since the previous frame [s] (the UKF prediction step)."""
+    twist: F64 | None
+    """(6,) velocity measurement (v_o, w) for the UKF, or None."""
+    samples: DepthSamples | None
+    """Measured depth samples for the outlier test of poses captured at this frame."""
+
+
+@dataclass(frozen=True, slots=True)
+class _Pose:
+    detection_id: int
+    capture_k: int
+    p_m: F64
+    q_wxyz: F64
+
+
+@dataclass(slots=True)
+class _PreviousFrame:
+    k: int
+    t_s: float
+    pixels: PixelSet | None
+    depth_m: NDArray[np.floating]
+
+
+class RoftTracker:
+    """ROFT (Piga et al. 2022) re-implemented in numpy; see docs/roft.md.
+
+    Satisfies :class:`roft_sim.trackers.Tracker`. Build it with
+    ``create_tracker(get_tracker_spec("roft"), context, config)``.
+    """
+
+    def __init__(self, config: RoftConfig, context: TrackerContext):
+        self._config = config
+        self._context = context
+        self._intrinsics = context.intrinsics
+        self._horizon = config.sync.horizon_frames
+        self._ukf = PoseUKF(config.pose)
+        self._outlier_test: DepthOutlierTest | None = None
+        self._uses_outlier_test = config.use_pose and config.outlier_rejection.enable
+        if self._uses_outlier_test:
+            if context.depth_renderer is None:
+                raise PluginError(
+                    "ROFT's outlier rejection needs a depth renderer in the TrackerContext; "
+                    "inject one or set outlier_rejection.enable = false"
+                )
+            self._outlier_test = DepthOutlierTest(
+                context.depth_renderer, context.intrinsics, config.outlier_rejection
+            )
+        self._mask_sync = MaskSynchroniser(config.mask, context.intrinsics.shape, self._horizon)
+        self._velocity_kf = VelocityKF(config.velocity)
+        self.reset(None)
+
+    @property
+    def config(self) -> RoftConfig:
+        return self._config
+
+    def reset(self, initial: Estimate | None) -> None:
+        """Starts a new sequence; ``initial`` gives the belief before the first frame, None
+        means "initialise from the earliest pose received"."""
+        self._mask_sync.reset()
+        self._velocity_kf.reset()
+        self._frames: dict[int, _Frame] = {}
+        self._beliefs: dict[int, PoseBelief] = {}
+        self._poses: dict[int, list[_Pose]] = {}
+        self._known_ids: dict[int, int] = {}  # detection_id -> capture frame
+        self._decisions: dict[int, bool] = {}  # detection_id -> accepted
+        self._init_pose: _Pose | None = None
+        self._initial = initial
+        self._first_k: int | None = None
+        self._last_k: int | None = None
+        self._last_t: float | None = None
+        self._previous: _PreviousFrame | None = None
+        self._totals: Counter[str] = Counter()
+
+    # ------------------------------------------------------------------ per-frame inputs
+    def _velocity_step(self, obs: Observation, pixels: PixelSet | None) -> tuple[F64 | None, int]:
+        """Runs the velocity KF; returns the UKF's velocity measurement and pixels used."""
+        if obs.depth_m is None:  # dropped camera frame: no measurement at all
+            return None, 0
+        used = 0
+        prev = self._previous
+        flow = obs.flow
+        if (
+            prev is not None
+            and prev.pixels is not None
+            and flow is not None
+            and flow.from_k == prev.k
+            and flow.to_k == obs.k
+        ):
+            dt = obs.t_s - prev.t_s
+            if dt > 0:
+                meas = flow_measurement(
+                    prev.pixels,
+                    prev.depth_m,
+                    flow,
+                    self._intrinsics,
+                    dt,
+                    self._config.velocity,
+                )
+                if self._velocity_kf.step(meas):
+                    used = len(meas)
+        self._previous = _PreviousFrame(obs.k, obs.t_s, pixels, obs.depth_m)
+        return self._velocity_kf.x.copy(), used
+
+    def _file_poses(self, k: int, poses: tuple[PoseDetection, ...]) -> tuple[list[_Pose], Counter]:
+        """Validates and files arriving poses under their (effective) capture frame."""
+        dropped: Counter[str] = Counter()
+        new: list[_Pose] = []
+        self._dropped_ids: list[int] = []
+        start = self._first_k
+        for det in poses:
+            c = det.capture_k if self._config.use_pose_resync else k
+            T = np.asarray(det.T_cam_obj, dtype=np.float64)
+            reason = None
+            if not np.isfinite(T).all():
+                reason = "invalid"
+            elif c > k:
+                reason = "future"
+            elif c < k - self._horizon:
+                reason = "too_old"
+            elif start is not None and c < start:
+                reason = "before_start"
+            elif det.detection_id in self._known_ids:
+                reason = "duplicate"
+            if reason is not None:
+                dropped[reason] += 1
+                self._dropped_ids.append(det.detection_id)
+                continue
+            q = quat_from_matrix(T[:3, :3])
+            pose = _Pose(det.detection_id, c, T[:3, 3].copy(), q)
+            self._poses.setdefault(c, []).append(pose)
+            self._known_ids[det.detection_id] = c
+            new.append(pose)
+            if not self._config.use_pose:  # kept only to initialise the filter
+                dropped["not_fused"] += 1
+                self._dropped_ids.append(det.detection_id)
+        return new, dropped
+
+    # ------------------------------------------------------------------ the filter
+    def _earliest_pose(self) -> _Pose | None:
+        if not self._poses:
+            return None
+        c = min(self._poses)
+        return min(self._poses[c], key=lambda p: p.detection_id)
+
+    def _replay_start(self, k: int, new: list[_Pose]) -> tuple[int, PoseBelief] | None:
+        """First frame to recompute and the belief before it; None while not initialised.
+
+        Poses in the buffer are ordered by (capture frame, detection_id); without an initial
+        estimate the first of them initialises the filter at its capture frame (the belief at
+        c-1 is its pose with zero velocity and the initial covariance), and an earlier one that
+        arrives later re-initialises it there.
+        """
+        if self._initial is not None:
+            if not self._beliefs:
+                first = self._first_k if self._first_k is not None else k
+                self._beliefs[first - 1] = self._initial_belief_from_estimate(self._initial)
+        else:
+            earliest = self._earliest_pose()
+            if earliest is None:
+                return None
+            init = self._init_pose
+            if init is None or (earliest.capture_k, earliest.detection_id) < (
+                init.capture_k,
+                init.detection_id,
+            ):
+                self._init_pose = earliest
+                c = earliest.capture_k
+                prior = self._ukf.initial_belief(earliest.p_m, earliest.q_wxyz)
+                for j in [j for j in self._beliefs if j >= c - 1]:
+                    del self._beliefs[j]
+                self._beliefs[c - 1] = prior
+                return c, prior
+        start = min([p.capture_k for p in new] + [k])
+        return start, self._beliefs[start - 1]
+
+    def _initial_belief_from_estimate(self, initial: Estimate) -> PoseBelief:
+        T = np.asarray(initial.T_cam_obj, dtype=np.float64)
+        belief = self._ukf.initial_belief(
+            T[:3, 3], quat_from_matrix(T[:3, :3]), initial.v_obj_mps, initial.w_radps
+        )
+        if initial.covariance is not None:
+            inv = np.argsort(ESTIMATE_FROM_UKF_INDEX)
+            P = np.asarray(initial.covariance, dtype=np.float64)[np.ix_(inv, inv)]
+            belief = PoseBelief(x=belief.x, q=belief.q, P=0.5 * (P + P.T))
+        return belief
+
+    def _correct_with_pose(
+        self, predicted: PoseBelief, twist: F64 | None, pose: _Pose, frame: _Frame, first: bool
+    ) -> PoseBelief:
+        """One pose correction (with the frame's velocity on the first pose of the frame), with
+        the depth outlier test unless the pose is the one that initialised the filter."""
+        with_pose = self._ukf.correct(
+            predicted, twist=twist, p_meas_m=pose.p_m, q_meas_wxyz=pose.q_wxyz
+        )
+        test = self._outlier_test
+        if test is None or pose is self._init_pose:
+            self._decisions[pose.detection_id] = True
+            return with_pose
+        without_pose = self._ukf.correct(predicted, twist=twist) if first else predicted
+        reject = test.reject(
+            transform_from_pq(with_pose.x[6:9], with_pose.q),
+            transform_from_pq(without_pose.x[6:9], without_pose.q),
+            frame.samples,
+        )
+        self._decisions[pose.detection_id] = not reject
+        return without_pose if reject else with_pose
+
+    def _advance(self, j: int, prior: PoseBelief) -> PoseBelief:
+        """Predict from j-1 to j and correct with everything known about frame j."""
+        frame = self._frames[j]
+        belief = self._ukf.predict(prior, frame.dt_s)
+        twist = frame.twist if self._config.use_velocity else None
+        poses = sorted(self._poses.get(j, []), key=lambda p: p.detection_id)
+        if not self._config.use_pose or not poses:
+            return self._ukf.correct(belief, twist=twist)
+        for i, pose in enumerate(poses):
+            belief = self._correct_with_pose(belief, twist if i == 0 else None, pose, frame, i == 0)
+        return belief
+
+    # ------------------------------------------------------------------ the protocol
+    def step(self, observation: Observation) -> Estimate:
+        """Consumes camera frame ``observation.k`` and returns the estimate for it."""
+        obs = observation
+        k = obs.k
+        if self._last_k is not None and k <= self._last_k:
+            raise ValueError(
+                f"observations must come in increasing k; got k={k} after {self._last_k}"
+            )
+        if self._first_k is None:
+            self._first_k = k
+        fps = self._context.fps
+        dt = obs.t_s - self._last_t if self._last_t is not None else 1.0 / fps
+        if not (np.isfinite(dt) and dt > 0):
+            dt = (k - (self._last_k if self._last_k is not None else k - 1)) / fps
+        self._last_k, self._last_t = k, obs.t_s
+
+        cfg = self._config
+        pixels: PixelSet | None = None
+        mask_counts: dict[str, int] = {}
+        if cfg.use_flow or self._uses_outlier_test:
+            masks: tuple[MaskDetection, ...] = obs.masks
+            mask_step = self._mask_sync.step(k, obs.flow if cfg.use_flow else None, masks)
+            pixels, mask_counts = mask_step.pixels, mask_step.counts
+        twist, flow_pixels = (None, 0)
+        if cfg.use_flow:
+            twist, flow_pixels = self._velocity_step(obs, pixels)
+        samples = None
+        if self._uses_outlier_test and pixels is not None and obs.depth_m is not None:
+            samples = depth_samples(pixels, obs.depth_m, cfg.outlier_rejection)
+        self._frames[k] = _Frame(dt_s=float(dt), twist=twist, samples=samples)
+
+        new, dropped = self._file_poses(k, obs.poses)
+        replay = 0
+        start = self._replay_start(k, new)
+        estimate_belief: PoseBelief | None = None
+        if start is not None:
+            j0, belief = start
+            for j in range(j0, k + 1):
+                belief = self._advance(j, belief)
+                self._beliefs[j] = belief
+                replay += 1
+            estimate_belief = belief
+        self._prune(k)
+
+        for reason, n in dropped.items():
+            self._totals[f"poses_dropped_{reason}"] += n
+        accepted = tuple(p.detection_id for p in new if self._decisions.get(p.detection_id))
+        rejected = tuple(
+            p.detection_id for p in new if self._decisions.get(p.detection_id) is False
+        )
+        self._totals["poses_rejected"] += len(rejected)
+        diagnostics: dict[str, float | int | str] = {
+            "flow_pixels": flow_pixels,
+            "mask_pixels": len(pixels) if pixels is not None else 0,
+            "replayed_frames": replay,
+            **{f"mask_{name}": n for name, n in mask_counts.items()},
+            **{f"poses_dropped_{reason}": n for reason, n in dropped.items()},
+            **{f"total_{name}": n for name, n in self._totals.items()},
+        }
+        spatial_twist = self._velocity_kf.x.copy() if cfg.use_flow else None
+        if estimate_belief is None:
+            return Estimate.invalid(
+                k,
+                spatial_twist=spatial_twist,
+                dropped_pose_ids=tuple(self._dropped_ids),
+                diagnostics=diagnostics,
+            )
+        b = estimate_belief
+        T = np.eye(4)
+        T[:3, :3] = matrix_from_quat(b.q)
+        T[:3, 3] = b.x[6:9]
+        cov = b.P[np.ix_(ESTIMATE_FROM_UKF_INDEX, ESTIMATE_FROM_UKF_INDEX)]
+        return Estimate(
+            k=k,
+            T_cam_obj=T,
+            v_obj_mps=b.x[0:3].copy(),
+            w_radps=b.x[3:6].copy(),
+            covariance=cov,
+            valid=True,
+            spatial_twist=spatial_twist,
+            accepted_pose_ids=accepted,
+            rejected_pose_ids=rejected,
+            dropped_pose_ids=tuple(self._dropped_ids),
+            diagnostics=diagnostics,
+        )
+
+    def _prune(self, k: int) -> None:
+        """Forgets what no pose within the horizon can need any more."""
+        oldest = k - self._horizon
+        for j in [j for j in self._frames if j < oldest]:
+            del self._frames[j]
+        for j in [j for j in self._beliefs if j < oldest - 1]:
+            del self._beliefs[j]
+        for c in [c for c in self._poses if c < oldest]:
+            for pose in self._poses.pop(c):
+                self._known_ids.pop(pose.detection_id, None)
+                self._decisions.pop(pose.detection_id, None)
+
+    @property
+    def pose_belief(self) -> PoseBelief | None:
+        """The UKF belief at the last processed frame (None before initialisation)."""
+        if self._last_k is None:
+            return None
+        return self._beliefs.get(self._last_k)
+
+    @property
+    def velocity_belief(self) -> tuple[F64, F64]:
+        """The velocity KF's mean (6,) and covariance (6, 6)."""
+        return self._velocity_kf.x.copy(), self._velocity_kf.P.copy()
