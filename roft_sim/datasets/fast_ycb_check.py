@@ -143,6 +143,9 @@ class _Checker:
         self.times = np.zeros(0)
         self.object_name: str | None = None
         self.gt_poses: list[np.ndarray] | None = None
+        self._depth_cache: dict[int, np.ndarray] = {}
+        self._flow_sample: set[int] = set()
+        self._depth_needed: set[int] = set()
 
     def problem(self, text: str) -> None:
         self.report.problems.append(text)
@@ -156,6 +159,10 @@ class _Checker:
             return self.report
         if not self._check_cam_k() or not self._check_data_txt():
             return self.report
+        n_sample = min(self.max_flow_frames, self.n - 1)
+        if n_sample > 0:
+            self._flow_sample = set(np.linspace(1, self.n - 1, n_sample).astype(int).tolist())
+        self._depth_needed = {j for i in self._flow_sample for j in (i - 1, i)}
         self._check_metadata()
         self._check_rgb()
         self._check_depth()
@@ -359,8 +366,10 @@ class _Checker:
 
     def _check_depth(self) -> None:
         files = self._expect_indexed_files(self.path / "depth", r"(\d+)\.float", range(self.n))
-        for path in files.values():
-            self._read_depth(path)
+        for i, path in files.items():
+            depth = self._read_depth(path)
+            if depth is not None and i in self._depth_needed:  # for the flow-direction check
+                self._depth_cache[i] = depth
 
     def _check_masks(self) -> None:
         masks = self.path / "masks"
@@ -521,65 +530,84 @@ class _Checker:
             files = self._expect_indexed_files(set_dir, r"(\d+)\.float", range(1, self.n))
             types = set()
             flows: dict[int, np.ndarray] = {}
-            n_sample = min(self.max_flow_frames, self.n - 1)
-            sample = set(np.linspace(1, self.n - 1, n_sample).astype(int)) if n_sample else set()
             for i, path in sorted(files.items()):
                 parsed = self._read_flow(path)
                 if parsed is not None:
                     types.add(parsed[0])
-                    if i in sample:
+                    if i in self._flow_sample:
                         flows[i] = parsed[1]
             if len(types) > 1:
                 self.problem(f"{set_dir}: files mix OpenCV types {sorted(types)}")
             self._check_flow_direction(set_dir, flows)
 
+    def _motion_field(
+        self, k: int, grid: int, flow_shape: tuple[int, ...], valid_png: Path | None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """Object pixels (rows, cols) of frame k and their motion field from k to k+1 [px]
+        computed from the depth of frame k and the gt poses; None when unusable."""
+        depth = self._depth_cache.get(k)
+        if depth is None:
+            return None
+        mask_path = self.path / "masks" / "gt" / f"{self.object_name}_{k}.png"
+        mask = cv2.imread(str(mask_path), cv2.IMREAD_GRAYSCALE)
+        if mask is None or mask.shape != depth.shape:
+            return None
+        rows, cols = np.nonzero((mask > 127) & (depth > 0))
+        if valid_png is not None and valid_png.is_file():
+            valid = cv2.imread(str(valid_png), cv2.IMREAD_GRAYSCALE)
+            if valid is not None and valid.shape == flow_shape[:2]:
+                keep = valid[rows // grid, cols // grid] > 127
+                rows, cols = rows[keep], cols[keep]
+        if rows.size < 10:
+            return None
+        step = max(1, rows.size // 2000)
+        rows, cols = rows[::step], cols[::step]
+        pix = np.stack([cols, rows, np.ones_like(rows)]).astype(np.float64)
+        X = np.linalg.inv(self.K) @ pix * depth[rows, cols]
+        M = self.gt_poses[k + 1] @ np.linalg.inv(self.gt_poses[k])
+        X1 = M[:3, :3] @ X + M[:3, 3:4]
+        if (X1[2] <= 0).any():
+            return None
+        expected = ((self.K @ (X1 / X1[2]))[:2] - pix[:2]).T
+        return rows, cols, expected
+
     def _check_flow_direction(self, set_dir: Path, flows: dict[int, np.ndarray]) -> None:
+        """File i must hold the motion from frame i-1 to i: compared with the reversed flow
+        and with the next pair (i -> i+1, an off-by-one writer)."""
         if self.gt_poses is None or not (self.path / "masks" / "gt").is_dir():
             self.note(f"{set_dir.name}: flow direction not checked (needs gt poses and masks)")
             return
-        fwd_errors, rev_errors, motions = [], [], []
-        Kinv = np.linalg.inv(self.K)
+        own_err, rev_err, motions, next_err, own_err_paired = [], [], [], [], []
         for i, flow in sorted(flows.items()):
-            depth = self._read_depth(self.path / "depth" / f"{i - 1}.float")
-            mask_path = self.path / "masks" / "gt" / f"{self.object_name}_{i - 1}.png"
-            mask = cv2.imread(str(mask_path), cv2.IMREAD_GRAYSCALE)
-            if depth is None or mask is None:
-                continue
-            valid_png = self.path / "optical_flow_valid" / set_dir.name / f"{i}.png"
-            rows, cols = np.nonzero((mask > 127) & (depth > 0))
             grid = -(-self.width // flow.shape[1])
-            if valid_png.is_file():
-                valid = cv2.imread(str(valid_png), cv2.IMREAD_GRAYSCALE)
-                if valid is not None and valid.shape == flow.shape[:2]:
-                    keep = valid[rows // grid, cols // grid] > 127
-                    rows, cols = rows[keep], cols[keep]
-            if rows.size < 10:
+            valid_png = self.path / "optical_flow_valid" / set_dir.name / f"{i}.png"
+            own = self._motion_field(i - 1, grid, flow.shape, valid_png)
+            if own is None:
                 continue
-            step = max(1, rows.size // 2000)
-            rows, cols = rows[::step], cols[::step]
-            X = (Kinv @ np.stack([cols, rows, np.ones_like(rows)]).astype(np.float64)) * depth[
-                rows, cols
-            ]
-            T0, T1 = self.gt_poses[i - 1], self.gt_poses[i]
-            M = T1 @ np.linalg.inv(T0)
-            X1 = M[:3, :3] @ X + M[:3, 3:4]
-            if (X1[2] <= 0).any():
-                continue
-            p1 = (self.K @ (X1 / X1[2]))[:2]
-            expected = (p1 - np.stack([cols, rows])).T
-            stored = flow[rows // grid, cols // grid]
+            rows, cols, expected = own
             motion = float(np.median(np.linalg.norm(expected, axis=1)))
             if motion < FLOW_MIN_MOTION_PX:
                 continue
+            stored = flow[rows // grid, cols // grid]
+            err = float(np.median(np.linalg.norm(stored - expected, axis=1)))
             motions.append(motion)
-            fwd_errors.append(float(np.median(np.linalg.norm(stored - expected, axis=1))))
-            rev_errors.append(float(np.median(np.linalg.norm(stored + expected, axis=1))))
-        if not fwd_errors:
+            own_err.append(err)
+            rev_err.append(float(np.median(np.linalg.norm(stored + expected, axis=1))))
+            if i + 1 < self.n:
+                nxt = self._motion_field(i, grid, flow.shape, None)
+                if nxt is not None:
+                    r, c, e = nxt
+                    next_err.append(
+                        float(np.median(np.linalg.norm(flow[r // grid, c // grid] - e, axis=1)))
+                    )
+                    own_err_paired.append(err)
+        if not own_err:
             self.note(f"{set_dir.name}: flow direction not checked (too little motion)")
             return
-        fwd, rev = float(np.median(fwd_errors)), float(np.median(rev_errors))
+        fwd, rev = float(np.median(own_err)), float(np.median(rev_err))
+        motion = float(np.median(motions))
         self.note(
-            f"{set_dir.name}: flow vs. motion field of the gt poses over {len(fwd_errors)} "
+            f"{set_dir.name}: flow vs. motion field of the gt poses over {len(own_err)} "
             f"frames: median error {fwd:.3g} px (a reversed flow would give {rev:.3g} px)"
         )
         if fwd >= rev:
@@ -588,11 +616,20 @@ class _Checker:
                 f"({rev:.3g} px) better than from k-1 to k ({fwd:.3g} px); file k must hold "
                 "the flow that maps frame k-1 to frame k"
             )
-        elif fwd > 1.0 + 0.5 * float(np.median(motions)):
+            return
+        if next_err:
+            paired, shifted = float(np.median(own_err_paired)), float(np.median(next_err))
+            if shifted < 0.5 * paired:
+                self.problem(
+                    f"{set_dir}: file k seems to hold the flow from frame k to k+1 (median error "
+                    f"{shifted:.3g} px) rather than from k-1 to k ({paired:.3g} px)"
+                )
+                return
+        if fwd > 1.0 + 0.5 * motion:
             self.problem(
                 f"{set_dir}: the flow disagrees with the ground-truth motion (median error "
-                f"{fwd:.3g} px for a median motion of {np.median(motions):.3g} px); wrong frame "
-                "pairing or units?"
+                f"{fwd:.3g} px for a median motion of {motion:.3g} px); wrong frame pairing or "
+                "units?"
             )
 
     def _check_models(self) -> None:

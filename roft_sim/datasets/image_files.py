@@ -8,6 +8,7 @@ ROFT reads them. Encoding is deterministic (fixed zlib level, no time stamps).
 
 from __future__ import annotations
 
+import struct
 from pathlib import Path
 
 import cv2
@@ -30,6 +31,9 @@ __all__ = [
 PNG_COMPRESSION = 3
 """zlib level of every PNG we write (0-9); fixed so that files are byte-identical across runs."""
 
+MAX_PNG_SIDE_PX = 1 << 15
+"""Largest image side accepted in a PNG header (anything larger is treated as corrupt)."""
+
 _PNG_PARAMS = [cv2.IMWRITE_PNG_COMPRESSION, PNG_COMPRESSION]
 
 
@@ -50,10 +54,23 @@ def _encode(image: np.ndarray) -> bytes:
     return buf.tobytes()
 
 
-def _decode(data: bytes, path: Path, what: str) -> np.ndarray:
+def _decode(data: bytes, path: Path, what: str, shape: tuple[int, int] | None = None) -> np.ndarray:
     if data[:8] != b"\x89PNG\r\n\x1a\n":
         raise DatasetFormatError(
             f"{what} file {located(path)} is not a PNG (it starts with {data[:8]!r})"
+        )
+    # Check the size in the header BEFORE decoding: a corrupt header could announce a huge
+    # image that takes seconds and gigabytes to decode.
+    if len(data) < 24 or data[12:16] != b"IHDR":
+        raise DatasetFormatError(f"{what} file {located(path)} has no PNG IHDR header")
+    width, height = struct.unpack(">II", data[16:24])
+    if not (0 < width <= MAX_PNG_SIDE_PX and 0 < height <= MAX_PNG_SIDE_PX):
+        raise DatasetFormatError(
+            f"{what} file {located(path)}: header size {width}x{height} is not plausible"
+        )
+    if shape is not None and (height, width) != tuple(shape):
+        raise DatasetFormatError(
+            f"{what} {located(path)} is {width}x{height} px; the camera is {shape[1]}x{shape[0]}"
         )
     try:
         image = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_UNCHANGED)
@@ -79,7 +96,7 @@ def decode_png_rgb(
         path: the file, for messages.
         shape: expected ``(H, W)``, or None.
     """
-    image = _decode(data, path, "rgb image")
+    image = _decode(data, path, "rgb image", shape)
     if image.dtype != np.uint8:
         raise DatasetFormatError(
             f"rgb image {located(path)} has {image.dtype} pixels; expected 8-bit colour"
@@ -106,7 +123,7 @@ def decode_png_mask(
 
     Colour masks are converted to grey first, as ROFT does.
     """
-    image = _decode(data, path, "mask")
+    image = _decode(data, path, "mask", shape)
     if image.dtype != np.uint8:
         raise DatasetFormatError(
             f"mask {located(path)} has {image.dtype} pixels; expected 8-bit 0/255"
@@ -129,7 +146,7 @@ def decode_png_u16(
     data: bytes, path: Path, *, shape: tuple[int, int] | None = None
 ) -> NDArray[np.uint16]:
     """``(H, W)`` uint16 image from a 16-bit single-channel PNG."""
-    image = _decode(data, path, "16-bit depth image")
+    image = _decode(data, path, "16-bit depth image", shape)
     if image.dtype != np.uint16 or image.ndim != 2:
         raise DatasetFormatError(
             f"depth image {located(path)} is {image.dtype} with shape {image.shape}; expected "

@@ -1,0 +1,271 @@
+"""Corrupt inputs to every reader raise DatasetFormatError naming the file and the problem."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import struct
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from dataset_fixtures import plate_sequence
+
+from roft_sim.datasets import detect_format, list_sequences, open_sequence, write_sequence
+from roft_sim.errors import DatasetFormatError
+
+
+@pytest.fixture(scope="module")
+def written(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    root = tmp_path_factory.mktemp("written")
+    seq = plate_sequence(n_frames=4)
+    return {fmt: write_sequence(seq, fmt, root / fmt) for fmt in ("fast-ycb", "bop", "hdf5")}
+
+
+@pytest.fixture
+def fast_ycb(written: dict[str, Path], tmp_path: Path) -> Path:
+    return Path(shutil.copytree(written["fast-ycb"], tmp_path / "seq"))
+
+
+@pytest.fixture
+def bop(written: dict[str, Path], tmp_path: Path) -> Path:
+    return Path(shutil.copytree(written["bop"], tmp_path / "scene"))
+
+
+@pytest.fixture
+def hdf5(written: dict[str, Path], tmp_path: Path) -> Path:
+    return Path(shutil.copy(written["hdf5"], tmp_path / "seq.h5"))
+
+
+def _edit_line(path: Path, line: int, text: str) -> None:
+    lines = path.read_text().splitlines()
+    lines[line - 1] = text
+    path.write_text("\n".join(lines) + "\n")
+
+
+# ------------------------------------------------------------------------------- fast-ycb
+def test_truncated_depth(fast_ycb: Path):
+    path = fast_ycb / "depth" / "2.float"
+    path.write_bytes(path.read_bytes()[:-100])
+    with pytest.raises(DatasetFormatError, match=rf"depth file '{path}' has .* bytes; its header"):
+        open_sequence(fast_ycb).depth(2)
+
+
+def test_depth_header_with_another_size(fast_ycb: Path):
+    path = fast_ycb / "depth" / "1.float"
+    path.write_bytes(struct.pack("<QQ", 32, 96) + path.read_bytes()[16:])
+    with pytest.raises(DatasetFormatError, match=rf"'{path}' is 32x96; the camera is 64x48"):
+        open_sequence(fast_ycb).depth(1)
+
+
+def test_depth_header_claiming_a_huge_image(fast_ycb: Path):
+    path = fast_ycb / "depth" / "1.float"
+    path.write_bytes(struct.pack("<QQ", 2**40, 2**40) + path.read_bytes()[16:])
+    with pytest.raises(DatasetFormatError, match="header width = 1099511627776 is not a plausible"):
+        open_sequence(fast_ycb).depth(1)
+
+
+def test_nan_depth(fast_ycb: Path):
+    path = fast_ycb / "depth" / "0.float"
+    data = bytearray(path.read_bytes())
+    data[16 + 4 * 70 : 16 + 4 * 71] = struct.pack("<f", float("nan"))
+    path.write_bytes(bytes(data))
+    with pytest.raises(DatasetFormatError, match=r"NaN/inf values \(first at row 1, column 6\)"):
+        open_sequence(fast_ycb).depth(0)
+
+
+def test_flow_with_a_wrong_type_or_size(fast_ycb: Path):
+    path = fast_ycb / "optical_flow" / "gt" / "1.float"
+    good = path.read_bytes()
+    path.write_bytes(struct.pack("<i", 6) + good[4:])
+    seq = open_sequence(fast_ycb)
+    with pytest.raises(DatasetFormatError, match=rf"flow file '{path}' has OpenCV type 6"):
+        seq.flow(1, "gt")
+    path.write_bytes(good[:4] + struct.pack("<QQ", 10, 7) + good[20:])
+    with pytest.raises(DatasetFormatError, match="header says 10x7"):
+        seq.flow(1, "gt")
+    path.write_bytes(good[:10])
+    with pytest.raises(DatasetFormatError, match="fewer than its 20-byte header"):
+        seq.flow(1, "gt")
+
+
+def test_missing_files(fast_ycb: Path):
+    (fast_ycb / "rgb" / "3.png").unlink()
+    (fast_ycb / "optical_flow" / "gt" / "2.float").unlink()
+    seq = open_sequence(fast_ycb)
+    with pytest.raises(DatasetFormatError, match=r"rgb file '.*rgb/3.png' is missing"):
+        seq.rgb(3)
+    with pytest.raises(DatasetFormatError, match=r"optical flow file '.*gt/2.float' is missing"):
+        seq.flow(2, "gt")
+    (fast_ycb / "data.txt").unlink()
+    with pytest.raises(DatasetFormatError, match="data.txt file .* is missing"):
+        open_sequence(fast_ycb, "fast-ycb")
+
+
+def test_corrupt_png(fast_ycb: Path):
+    path = fast_ycb / "rgb" / "1.png"
+    path.write_bytes(path.read_bytes()[:60])
+    with pytest.raises(DatasetFormatError, match=rf"rgb image file '{path}' is a corrupt"):
+        open_sequence(fast_ycb).rgb(1)
+    mask = fast_ycb / "masks" / "gt" / "003_cracker_box_0.png"
+    mask.write_bytes(b"GIF89a" + b"\0" * 30)
+    with pytest.raises(DatasetFormatError, match=rf"mask file '{mask}' is not a PNG"):
+        open_sequence(fast_ycb).mask(0, "gt")
+
+
+def test_nan_pose_row(fast_ycb: Path):
+    path = fast_ycb / "gt" / "poses.txt"
+    _edit_line(path, 3, "0 nan 0.5 1 0 0 0")
+    with pytest.raises(DatasetFormatError, match=rf"'{path}', line 3: NaN or inf"):
+        open_sequence(fast_ycb).ground_truth()
+
+
+def test_short_pose_file_and_bad_rows(fast_ycb: Path):
+    path = fast_ycb / "dope" / "poses.txt"
+    lines = path.read_text().splitlines()
+    path.write_text("\n".join(lines[:-1]) + "\n")
+    with pytest.raises(DatasetFormatError, match=rf"'{path}' has 3 rows; the sequence has 4"):
+        open_sequence(fast_ycb).detector_poses("dope")
+    _edit_line(path, 2, "1 2 3")
+    with pytest.raises(DatasetFormatError, match=rf"'{path}', line 2: expected 7 numbers, got 3"):
+        open_sequence(fast_ycb).detector_poses("dope")
+
+
+def test_velocities_with_nan(fast_ycb: Path):
+    path = fast_ycb / "gt" / "velocities.txt"
+    _edit_line(path, 4, "0 0 0 inf 0 0")
+    with pytest.raises(DatasetFormatError, match=rf"'{path}', line 4: NaN or inf"):
+        open_sequence(fast_ycb).ground_truth()
+
+
+def test_bad_json(fast_ycb: Path):
+    (fast_ycb / "metadata.json").write_text('{"fps": 30,\n "x": }')
+    with pytest.raises(DatasetFormatError, match=r"metadata file '.*metadata.json', line 2 is not"):
+        open_sequence(fast_ycb)
+    (fast_ycb / "metadata.json").unlink()
+    (fast_ycb / "cam_K.json").write_text("{'fx': 1}")
+    with pytest.raises(DatasetFormatError, match=r"cam_K.json', line 1 is not valid JSON"):
+        open_sequence(fast_ycb)
+
+
+def test_data_txt_with_a_bad_camera_axis(fast_ycb: Path):
+    path = fast_ycb / "data.txt"
+    _edit_line(path, 2, "0.1 0.1 0 0 0 0 0 0 0.3")
+    with pytest.raises(DatasetFormatError, match=rf"'{path}', line 2: rotation axis"):
+        open_sequence(fast_ycb)
+
+
+def test_wrong_mask_size(fast_ycb: Path):
+    import cv2
+
+    path = fast_ycb / "masks" / "mrcnn" / "003_cracker_box_1.png"
+    cv2.imwrite(str(path), np.zeros((5, 5), np.uint8))
+    with pytest.raises(DatasetFormatError, match=rf"mask '{path}' is 5x5 px; the camera is 64x48"):
+        open_sequence(fast_ycb).mask(1, "mrcnn")
+
+
+def test_unknown_sets_and_frames_are_key_and_index_errors(fast_ycb: Path):
+    seq = open_sequence(fast_ycb)
+    with pytest.raises(KeyError, match="no flow set 'dis'"):
+        seq.flow(1, "dis")
+    with pytest.raises(IndexError, match="frame 4 is outside 0..3"):
+        seq.rgb(4)
+
+
+# ------------------------------------------------------------------------------------ BOP
+def test_bop_bad_json_and_missing_files(bop: Path):
+    (bop / "depth" / "000002.png").unlink()
+    with pytest.raises(DatasetFormatError, match=r"depth file '.*000002.png' is missing"):
+        open_sequence(bop).depth(2)
+    (bop / "scene_gt.json").write_text("[1, 2]")
+    with pytest.raises(DatasetFormatError, match="must hold a JSON object keyed by image id"):
+        open_sequence(bop)
+    (bop / "scene_camera.json").write_text('{"0": {"cam_K": [1, 2]}}')
+    with pytest.raises(DatasetFormatError, match="cam_K of image 0 must be 9 finite numbers"):
+        open_sequence(bop)
+
+
+def test_bop_nan_pose_and_changing_intrinsics(bop: Path):
+    gt = json.loads((bop / "scene_gt.json").read_text())
+    gt["1"][0]["cam_t_m2c"][0] = float("nan")
+    (bop / "scene_gt.json").write_text(json.dumps(gt))
+    with pytest.raises(DatasetFormatError, match="cam_t_m2c of image 1 must be 3 finite numbers"):
+        open_sequence(bop).ground_truth()
+    cams = json.loads((bop / "scene_camera.json").read_text())
+    cams["2"]["cam_K"][0] += 1
+    (bop / "scene_camera.json").write_text(json.dumps(cams))
+    with pytest.raises(DatasetFormatError, match="cam_K of image 2 differs from image 0"):
+        open_sequence(bop)
+
+
+def test_bop_depth_png_of_the_wrong_kind(bop: Path):
+    import cv2
+
+    cv2.imwrite(str(bop / "depth" / "000001.png"), np.zeros((48, 64), np.uint8))
+    with pytest.raises(DatasetFormatError, match="expected a single-channel 16-bit PNG"):
+        open_sequence(bop).depth(1)
+
+
+def test_bop_bad_pose_csv_and_unknown_object(bop: Path):
+    path = bop / "extras" / "poses" / "dope.csv"
+    _edit_line(path, 3, "0,1,2,1,1 0 0,1 2 3,-1")
+    with pytest.raises(DatasetFormatError, match=rf"'{path}', line 3: bad pose row"):
+        open_sequence(bop).detector_poses("dope")
+    with pytest.raises(DatasetFormatError, match=r"object id 7 is not in .* \(it shows \[2\]\)"):
+        open_sequence(bop, object_name="obj_000007")
+
+
+# ----------------------------------------------------------------------------------- HDF5
+def test_truncated_hdf5(hdf5: Path):
+    hdf5.write_bytes(hdf5.read_bytes()[:3000])
+    with pytest.raises(DatasetFormatError, match=rf"'{hdf5}': cannot read"):
+        open_sequence(hdf5)
+
+
+def test_not_our_hdf5_or_not_hdf5(tmp_path: Path):
+    other = tmp_path / "other.h5"
+    with h5py.File(other, "w") as f:
+        f["x"] = np.zeros(3)
+    with pytest.raises(DatasetFormatError, match="HDF5 file but not a roft_sim sequence"):
+        open_sequence(other)
+    text = tmp_path / "text.h5"
+    text.write_text("hello")
+    with pytest.raises(DatasetFormatError, match="is a file but not an HDF5 file"):
+        open_sequence(text)
+    with pytest.raises(DatasetFormatError, match="cannot read"):
+        open_sequence(text, "hdf5")
+
+
+def test_hdf5_missing_dataset_and_nan(hdf5: Path):
+    with h5py.File(hdf5, "a") as f:
+        f["depth_m"][1, 3, 3] = np.nan
+        del f["gt/T_cam_obj"]
+    seq = open_sequence(hdf5)
+    with pytest.raises(DatasetFormatError, match=r"/depth_m frame 1 has NaN/inf"):
+        seq.depth(1)
+    with pytest.raises(DatasetFormatError, match=r"has no dataset /gt/T_cam_obj"):
+        seq.ground_truth()
+    seq.close()  # HDF5 refuses to open a file for writing while it is open for reading
+    with h5py.File(hdf5, "a") as f:
+        del f["time_s"]
+    with pytest.raises(DatasetFormatError, match=r"has no dataset /time_s"):
+        open_sequence(hdf5)
+
+
+# -------------------------------------------------------------------------------- general
+def test_detect_and_list_errors(tmp_path: Path):
+    with pytest.raises(DatasetFormatError, match="does not exist"):
+        detect_format(tmp_path / "nope")
+    with pytest.raises(DatasetFormatError, match="is no sequence: expected cam_K.json"):
+        open_sequence(tmp_path)
+    with pytest.raises(DatasetFormatError, match="dataset root .* does not exist"):
+        list_sequences(tmp_path / "nope")
+    assert list_sequences(tmp_path) == []
+
+
+def test_list_sequences_finds_all_formats_and_bop_splits(written: dict[str, Path]):
+    root = written["fast-ycb"].parent.parent
+    found = list_sequences(root)
+    assert found == sorted(written.values())
+    assert [detect_format(p) for p in found] == ["bop", "fast-ycb", "hdf5"]
