@@ -1,0 +1,276 @@
+"""Renders a scenario frame by frame with exact ground truth.
+
+:class:`SceneRenderer` builds the MuJoCo scene of a :class:`roft_sim.scenario.Scenario` once, owns
+one offscreen OpenGL renderer, and renders any frame ``k`` on demand (frames are independent: the
+replay is kinematic, so frames may be rendered in any order, in parallel processes, or again,
+with identical results on the same backend).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import mujoco
+import numpy as np
+from numpy.typing import NDArray
+
+from roft_sim.errors import ConfigError
+from roft_sim.geometry import (
+    CameraIntrinsics,
+    invert_transform,
+    quat_from_matrix,
+    relative_motion,
+    v_o_from_v_obj,
+)
+from roft_sim.render.ground_truth import RenderedFrame
+from roft_sim.render.offscreen import OffscreenRenderer
+from roft_sim.scene.builder import BODY_NAMES, BuiltScene, build_scene
+from roft_sim.scene.camera_motion import camera_poses
+from roft_sim.sensors.depth_noise import apply_depth_noise
+
+if TYPE_CHECKING:
+    from roft_sim.scenario import Scenario
+    from roft_sim.trajectories.base import Trajectory
+
+F64 = NDArray[np.float64]
+
+__all__ = ["SceneRenderer", "SceneState"]
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class SceneState:
+    """Poses and relative velocities of the scene's bodies at one time."""
+
+    t_s: float
+    """Scenario time [s]."""
+    T_world_cam: F64
+    """(4, 4) camera pose (OpenCV frame) in the world [m]."""
+    T_world_obj: F64
+    """(4, 4) object pose in the world [m]."""
+    T_cam_obj: F64
+    """(4, 4) object pose in the camera frame [m]."""
+    v_obj_mps: F64
+    """(3,) object-origin velocity relative to the camera, camera frame [m/s]."""
+    w_radps: F64
+    """(3,) object angular velocity relative to the camera, camera frame [rad/s]."""
+
+
+class SceneRenderer:
+    """Renders the frames of one scenario. A context manager (frees the OpenGL context).
+
+    Args:
+        scenario: what to render.
+        assets_dir: folder of real object meshes (passed to ``roft_sim.assets.load_object``).
+        cache_dir: asset cache folder (idem).
+        object_assets: an already loaded ``ObjectAssets`` (anything with ``.mesh``, a textured
+            mesh in the object frame); skips loading ``scenario.object``.
+        trajectory: an already built object trajectory (``sample(t_s)`` giving ``T_ref_obj`` in
+            the world frame, i.e. the camera frame at rest); skips building
+            ``scenario.trajectory``.
+        segmentation: render segmentation (object mask, geom ids and the body index that
+            ground-truth flow needs). Off: rgb and depth only (faster).
+
+    Raises:
+        ConfigError: the trajectory is shorter than the scenario, or the scene is invalid.
+    """
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        *,
+        assets_dir: Any = None,
+        cache_dir: Any = None,
+        object_assets: Any = None,
+        trajectory: Trajectory | None = None,
+        segmentation: bool = True,
+    ) -> None:
+        self._renderer: OffscreenRenderer | None = None
+        self.scenario = scenario
+        intrinsics = scenario.intrinsics
+        if object_assets is None:
+            from roft_sim.assets import load_object
+
+            object_assets = load_object(
+                scenario.object.name_or_path, assets_dir=assets_dir, cache_dir=cache_dir
+            )
+        self.object_assets = object_assets
+        mesh = object_assets.mesh
+        if trajectory is None:
+            from roft_sim.trajectories import build_trajectory
+
+            radius = float(np.linalg.norm(np.asarray(mesh.vertices_m), axis=1).max())
+            trajectory = build_trajectory(scenario.trajectory, intrinsics, object_radius_m=radius)
+        self.trajectory = trajectory
+        last_s = float(trajectory.start_s) + (scenario.n_frames - 1) / scenario.fps
+        if last_s > float(trajectory.end_s) + 1e-9:
+            raise ConfigError(
+                f"scenario {scenario.name!r} needs {scenario.n_frames} frames at {scenario.fps} "
+                f"fps (until {last_s:.3f} s) but its trajectory ends at "
+                f"{float(trajectory.end_s):.3f} s; shorten duration_s/frames or lengthen the "
+                "trajectory"
+            )
+        self.built: BuiltScene = build_scene(
+            intrinsics=intrinsics,
+            object_mesh=mesh,
+            scene=scenario.scene,
+            render=scenario.render,
+            rng=scenario.rng("scene_textures"),
+        )
+        self._data = mujoco.MjData(self.built.model)
+        self._segmentation = segmentation
+        self._body_names = BODY_NAMES if self.built.hand_mocap is not None else BODY_NAMES[:2]
+        self._renderer = OffscreenRenderer(
+            self.built.model, intrinsics.width_px, intrinsics.height_px
+        )
+
+    # -- properties ---------------------------------------------------------------------------
+    @property
+    def intrinsics(self) -> CameraIntrinsics:
+        """The camera's intrinsics."""
+        return self.scenario.intrinsics
+
+    @property
+    def n_frames(self) -> int:
+        """Number of frames of the scenario."""
+        return self.scenario.n_frames
+
+    @property
+    def model(self) -> mujoco.MjModel:
+        """The compiled MuJoCo model."""
+        return self.built.model
+
+    @property
+    def body_names(self) -> tuple[str, ...]:
+        """Rigid bodies of the scene, in ``RenderedFrame.T_cam_bodies`` order."""
+        return self._body_names
+
+    # -- kinematics ---------------------------------------------------------------------------
+    def state_at(self, t_s: float) -> SceneState:
+        """Exact poses and velocities at scenario time ``t_s`` [s] (``0 <= t_s`` and within the
+        trajectory; times just outside are clamped onto it)."""
+        traj = self.trajectory
+        t_traj = float(np.clip(float(traj.start_s) + t_s, traj.start_s, traj.end_s))
+        sample = traj.sample(np.array([t_traj]))
+        cam = camera_poses(self.scenario.camera.motion, np.array([t_s]))
+        T_cam_obj, v_obj, w = relative_motion(
+            cam.T_world_cam[0],
+            cam.v_world_mps[0],
+            cam.w_world_radps[0],
+            sample.T_ref_obj[0],
+            sample.v_mps[0],
+            sample.w_radps[0],
+        )
+        return SceneState(
+            t_s=t_s,
+            T_world_cam=cam.T_world_cam[0],
+            T_world_obj=sample.T_ref_obj[0],
+            T_cam_obj=T_cam_obj,
+            v_obj_mps=v_obj,
+            w_radps=w,
+        )
+
+    def _pose_scene(self, state: SceneState) -> None:
+        b, d = self.built, self._data
+        d.mocap_pos[b.camera_mocap] = state.T_world_cam[:3, 3]
+        d.mocap_quat[b.camera_mocap] = quat_from_matrix(state.T_world_cam[:3, :3])
+        d.mocap_pos[b.object_mocap] = state.T_world_obj[:3, 3]
+        d.mocap_quat[b.object_mocap] = quat_from_matrix(state.T_world_obj[:3, :3])
+        if b.hand_mocap is not None:  # the hand's frame is the object's (fixed grasp)
+            d.mocap_pos[b.hand_mocap] = state.T_world_obj[:3, 3]
+            d.mocap_quat[b.hand_mocap] = quat_from_matrix(state.T_world_obj[:3, :3])
+        mujoco.mj_kinematics(b.model, d)
+        mujoco.mj_camlight(b.model, d)
+        assert self._renderer is not None
+        self._renderer.update(d, b.camera_id)
+
+    # -- rendering ----------------------------------------------------------------------------
+    def render_frame(self, k: int) -> RenderedFrame:
+        """Renders frame ``k`` (0 <= k < n_frames) with its ground truth."""
+        if self._renderer is None:
+            raise RuntimeError("SceneRenderer used after close()")
+        if not 0 <= k < self.n_frames:
+            raise IndexError(f"frame {k} outside 0..{self.n_frames - 1}")
+        opts = self.scenario.render
+        t_s = self.scenario.frame_time_s(k)
+        state = self.state_at(t_s)
+        self._pose_scene(state)
+        blur = opts.motion_blur_subframes > 1
+        out = self._renderer.render(
+            rgb=not blur, depth=True, segmentation=self._segmentation, shadows=opts.shadows
+        )
+        rgb = out.rgb
+        if blur:
+            rgb = self._blurred_rgb(t_s)
+        assert rgb is not None and out.depth_m is not None
+        depth = out.depth_m
+        sensor_depth = apply_depth_noise(
+            opts.depth_noise,
+            depth,
+            self.scenario.rng("depth_noise", k),
+            fx_px=self.intrinsics.fx_px,
+            rgb=rgb,
+        )
+        mask = seg = body = None
+        if out.geom_id is not None:
+            seg = out.geom_id
+            mask = seg == self.built.object_geom_id
+            lut = np.append(self.built.geom_body, np.int8(-1))  # index -1 -> -1
+            body = lut[seg]
+        T_cam_world = invert_transform(state.T_world_cam)
+        bodies = [T_cam_world, state.T_cam_obj]
+        if self.built.hand_mocap is not None:
+            bodies.append(state.T_cam_obj)  # hand frame = object frame
+        return RenderedFrame(
+            k=k,
+            t_s=t_s,
+            rgb=rgb,
+            depth_m=depth,
+            sensor_depth_m=sensor_depth,
+            object_mask=mask,
+            segmentation=seg,
+            body_index=body,
+            T_cam_obj=state.T_cam_obj,
+            v_obj_mps=state.v_obj_mps,
+            w_radps=state.w_radps,
+            v_o_mps=v_o_from_v_obj(state.v_obj_mps, state.w_radps, state.T_cam_obj[:3, 3]),
+            T_world_cam=state.T_world_cam,
+            T_cam_bodies=np.stack(bodies),
+            body_names=self._body_names,
+        )
+
+    def _blurred_rgb(self, t_s: float) -> NDArray[np.uint8]:
+        """Mean of ``n`` renders at sub-frame times spread evenly over the exposure, centred on
+        ``t_s``: ``t_s + exposure * ((i + 0.5) / n - 0.5)``."""
+        opts = self.scenario.render
+        n = opts.motion_blur_subframes
+        exposure_s = opts.exposure_fraction / self.scenario.fps
+        acc = np.zeros(self.intrinsics.shape + (3,), dtype=np.float64)
+        assert self._renderer is not None
+        for i in range(n):
+            t_i = max(0.0, t_s + exposure_s * ((i + 0.5) / n - 0.5))
+            self._pose_scene(self.state_at(t_i))
+            sub = self._renderer.render(rgb=True, depth=False, shadows=opts.shadows).rgb
+            assert sub is not None
+            acc += sub
+        return np.clip(np.rint(acc / n), 0, 255).astype(np.uint8)
+
+    def frames(self, start: int = 0, stop: int | None = None) -> Iterator[RenderedFrame]:
+        """Renders frames ``start`` ... ``stop - 1`` (default: to the end) in order."""
+        stop = self.n_frames if stop is None else min(stop, self.n_frames)
+        for k in range(start, stop):
+            yield self.render_frame(k)
+
+    # -- lifetime -----------------------------------------------------------------------------
+    def close(self) -> None:
+        """Frees the OpenGL context (idempotent)."""
+        if self._renderer is not None:
+            self._renderer.close()
+        self._renderer = None
+
+    def __enter__(self) -> SceneRenderer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

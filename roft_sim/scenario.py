@@ -1,0 +1,212 @@
+"""Scenario files: one TOML file describes a whole rendered sequence.
+
+A scenario names the camera (intrinsics, resolution, rate, optional ego-motion), the object
+(registry name or mesh file), its trajectory, the scene (table, background, lights, hand
+occluder), render options, the seed and the length. Loading is strict
+(:mod:`roft_sim.config_files`): unknown keys and bad values raise :class:`ConfigError` naming the
+file, the key and the fix. Relative paths are resolved against the scenario file's folder when it
+is loaded. Every key, its unit and default: ``docs/scenarios.md``.
+
+Randomness: :meth:`Scenario.seed_sequence` gives each subsystem its own stream derived from
+``seed`` and the subsystem's name, so adding a subsystem never changes another one's numbers.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import zlib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from roft_sim.config_files import dataclass_from_mapping, load_toml
+from roft_sim.errors import ConfigError
+from roft_sim.geometry import CameraIntrinsics
+from roft_sim.scene.config import CameraMotionConfig, RenderConfig, SceneConfig
+from roft_sim.trajectories import TrajectoryConfig
+
+__all__ = ["CameraConfig", "ObjectConfig", "Scenario", "load_scenario", "FAST_YCB_CAMERA_CONFIG"]
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class CameraConfig:
+    """The RGB-D camera: pinhole intrinsics (OpenCV convention, pixel centres at integers),
+    resolution, frame rate and optional ego-motion."""
+
+    width_px: int
+    """Image width [px]."""
+    height_px: int
+    """Image height [px]."""
+    fx_px: float
+    """Focal length along u [px]."""
+    fy_px: float
+    """Focal length along v [px]."""
+    cx_px: float
+    """Principal point column [px]; need not be the image centre."""
+    cy_px: float
+    """Principal point row [px]."""
+    fps: int = 30
+    """Frames per second (an integer; frame k is at ``k / fps`` s)."""
+    motion: CameraMotionConfig | None = None
+    """Camera ego-motion (``[camera.motion]``, ``kind = "sway"``); absent = static camera at the
+    world origin."""
+
+    def __post_init__(self) -> None:
+        if self.fps <= 0:
+            raise ConfigError(f"camera.fps must be a positive integer, got {self.fps}")
+        self.intrinsics  # noqa: B018 - validates the intrinsics
+
+    @property
+    def intrinsics(self) -> CameraIntrinsics:
+        """The pinhole intrinsics."""
+        return CameraIntrinsics(
+            fx_px=self.fx_px,
+            fy_px=self.fy_px,
+            cx_px=self.cx_px,
+            cy_px=self.cy_px,
+            width_px=self.width_px,
+            height_px=self.height_px,
+        )
+
+
+FAST_YCB_CAMERA_CONFIG = CameraConfig(
+    width_px=1280,
+    height_px=720,
+    fx_px=1229.4285612615463,
+    fy_px=1229.4285612615463,
+    cx_px=640.0,
+    cy_px=360.0,
+    fps=30,
+)
+"""The Fast-YCB camera (``../shared/reference/fast_ycb_format.md``)."""
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class ObjectConfig:
+    """The tracked object: a registry name or a mesh file (exactly one)."""
+
+    name: str | None = None
+    """Registry name, e.g. ``003_cracker_box`` (real mesh when installed, else the procedural
+    stand-in)."""
+    mesh: Path | None = None
+    """Textured mesh file (``.obj`` with its ``.mtl`` and texture) in the object frame of the
+    poses; relative paths resolve against the scenario file's folder."""
+
+    def __post_init__(self) -> None:
+        if (self.name is None) == (self.mesh is None):
+            raise ConfigError(
+                "[object] needs exactly one of name = '<registry name>' or mesh = '<file>', got "
+                f"name={self.name!r}, mesh={None if self.mesh is None else str(self.mesh)!r}"
+            )
+
+    @property
+    def name_or_path(self) -> str | Path:
+        """What ``roft_sim.assets.load_object`` takes."""
+        return self.mesh if self.mesh is not None else self.name  # type: ignore[return-value]
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Scenario:
+    """A rendered sequence, fully specified (see the module doc and ``docs/scenarios.md``)."""
+
+    name: str
+    """Scenario name (used for output folders and reports)."""
+    camera: CameraConfig
+    """The camera (``[camera]``)."""
+    object: ObjectConfig
+    """The object (``[object]``)."""
+    trajectory: TrajectoryConfig
+    """The object's motion (``[trajectory]``, ``kind = "synthetic" | "file"``), placed in front
+    of the camera at rest."""
+    scene: SceneConfig = field(default_factory=SceneConfig)
+    """Table, background, lights and hand (``[scene]``)."""
+    render: RenderConfig = field(default_factory=RenderConfig)
+    """Render options (``[render]``)."""
+    seed: int = 0
+    """Seed of every random choice of the scenario (textures, depth noise; the trajectory config
+    carries its own)."""
+    duration_s: float | None = None
+    """Length [s]; give this or ``frames``."""
+    frames: int | None = None
+    """Number of camera frames; give this or ``duration_s``."""
+
+    def __post_init__(self) -> None:
+        if not self.name:
+            raise ConfigError("scenario name must be a non-empty string")
+        if self.seed < 0:
+            raise ConfigError(f"seed must be >= 0, got {self.seed}")
+        if (self.duration_s is None) == (self.frames is None):
+            raise ConfigError(
+                "give exactly one of duration_s = <seconds> or frames = <count>, got "
+                f"duration_s={self.duration_s}, frames={self.frames}"
+            )
+        if self.frames is not None and self.frames < 1:
+            raise ConfigError(f"frames must be >= 1, got {self.frames}")
+        if self.duration_s is not None:
+            if not (np.isfinite(self.duration_s) and self.duration_s > 0):
+                raise ConfigError(f"duration_s must be a positive number, got {self.duration_s}")
+            if round(self.duration_s * self.camera.fps) < 1:
+                raise ConfigError(
+                    f"duration_s = {self.duration_s} s is shorter than one frame at "
+                    f"{self.camera.fps} fps"
+                )
+
+    @property
+    def intrinsics(self) -> CameraIntrinsics:
+        """The camera's pinhole intrinsics."""
+        return self.camera.intrinsics
+
+    @property
+    def fps(self) -> int:
+        """Camera frame rate [Hz]."""
+        return self.camera.fps
+
+    @property
+    def n_frames(self) -> int:
+        """Number of camera frames: ``frames``, or ``round(duration_s * fps)``."""
+        if self.frames is not None:
+            return self.frames
+        return int(round(self.duration_s * self.camera.fps))  # type: ignore[operator]
+
+    def frame_time_s(self, k: int) -> float:
+        """Time stamp of frame ``k``: ``k / fps`` [s]."""
+        return k / self.camera.fps
+
+    def seed_sequence(self, subsystem: str, *index: int) -> np.random.SeedSequence:
+        """The random stream of one subsystem (e.g. ``"depth_noise"``, per frame ``k``):
+        ``SeedSequence(seed, spawn_key=(crc32(subsystem), *index))``."""
+        key = zlib.crc32(subsystem.encode("utf-8"))
+        return np.random.SeedSequence(self.seed, spawn_key=(key, *(int(i) for i in index)))
+
+    def rng(self, subsystem: str, *index: int) -> np.random.Generator:
+        """A generator on :meth:`seed_sequence`."""
+        return np.random.default_rng(self.seed_sequence(subsystem, *index))
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Reads a scenario TOML file strictly.
+
+    Relative paths in it (``[object] mesh``, ``[trajectory] path``) are resolved here, against
+    the file's folder, and stored absolute.
+
+    Raises:
+        ConfigError: missing file, invalid TOML, unknown key, missing key or bad value; the
+            message names the file, the key and the fix.
+    """
+    path = Path(path)
+    data = load_toml(path)
+    where = f"{path}:"
+    try:
+        scenario = dataclass_from_mapping(Scenario, data, where=where)
+    except ConfigError as e:  # top-level keys would read "file.toml:: ..."
+        raise ConfigError(str(e).replace(f"{where}:", where, 1)) from None
+    base_dir = path.resolve().parent
+    obj = scenario.object
+    if obj.mesh is not None and not obj.mesh.is_absolute():
+        obj = dataclasses.replace(obj, mesh=base_dir / obj.mesh)
+    trajectory = scenario.trajectory
+    traj_path = getattr(trajectory, "path", None)
+    if isinstance(traj_path, Path) and not traj_path.is_absolute():
+        trajectory = dataclasses.replace(trajectory, path=base_dir / traj_path)
+    return dataclasses.replace(scenario, object=obj, trajectory=trajectory)
