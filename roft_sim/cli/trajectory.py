@@ -25,6 +25,7 @@ from roft_sim.trajectories import (
     TRAJECTORY_FILE_FORMATS,
     CapturedMotionConfig,
     CapturedTrajectory,
+    PlacementConfig,
     SpeedStatistics,
     SyntheticMotionConfig,
     Trajectory,
@@ -62,6 +63,20 @@ def _add_source_arguments(parser: argparse.ArgumentParser) -> None:
         "--window-s", type=float, nargs=2, metavar=("START", "END"), help="keep this time span"
     )
     parser.add_argument("--speed-scale", type=float, default=1.0, help="play faster (>1)/slower")
+    parser.add_argument(
+        "--working-distance-m",
+        type=float,
+        nargs=2,
+        default=(0.4, 0.9),
+        metavar=("NEAR", "FAR"),
+        help="depth range of the placed object [m] (default 0.4 0.9, as Fast-YCB)",
+    )
+    parser.add_argument(
+        "--min-in-view-fraction",
+        type=float,
+        help="fail when less of the placed motion stays in view (export default 0.5; stats "
+        "only reports it)",
+    )
     parser.add_argument(
         "--synthetic", action="store_true", help="use the synthetic generator instead of a file"
     )
@@ -101,18 +116,28 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     export.set_defaults(func=_run_export)
 
 
-def trajectory_config_from_args(args: argparse.Namespace) -> TrajectoryConfig:
+def trajectory_config_from_args(
+    args: argparse.Namespace, *, default_min_in_view_fraction: float = 0.5
+) -> TrajectoryConfig:
     """The trajectory config that the command-line arguments describe.
 
     Raises:
         ConfigError: contradictory or missing arguments.
     """
+    working_distance_m = (float(args.working_distance_m[0]), float(args.working_distance_m[1]))
     if args.synthetic:
         if args.file is not None or args.format is not None:
             raise ConfigError("give either FILE --format ... or --synthetic, not both")
-        return SyntheticMotionConfig(seed=args.seed, duration_s=args.duration_s)
+        return SyntheticMotionConfig(
+            seed=args.seed, duration_s=args.duration_s, working_distance_m=working_distance_m
+        )
     if args.file is None or args.format is None:
         raise ConfigError("give FILE and --format (tum, bvh, fast-ycb, bop, csv), or --synthetic")
+    fraction = args.min_in_view_fraction
+    placement = PlacementConfig(
+        working_distance_m=working_distance_m,
+        min_in_view_fraction=default_min_in_view_fraction if fraction is None else fraction,
+    )
     return CapturedMotionConfig(
         path=args.file,
         format=args.format,
@@ -124,6 +149,7 @@ def trajectory_config_from_args(args: argparse.Namespace) -> TrajectoryConfig:
         remove_drift_window_s=args.drift_window_s,
         window_s=None if args.window_s is None else tuple(args.window_s),
         speed_scale=args.speed_scale,
+        placement=placement,
     )
 
 
@@ -145,13 +171,18 @@ def format_speed_table(stats: SpeedStatistics, title: str) -> str:
     )
 
 
-def _build(args: argparse.Namespace) -> tuple[TrajectoryConfig, Trajectory]:
-    config = trajectory_config_from_args(args)
+def _build(
+    args: argparse.Namespace, default_min_in_view_fraction: float
+) -> tuple[TrajectoryConfig, Trajectory]:
+    config = trajectory_config_from_args(
+        args, default_min_in_view_fraction=default_min_in_view_fraction
+    )
     return config, build_trajectory(config, FAST_YCB_CAMERA)
 
 
 def _run_stats(args: argparse.Namespace) -> int:
-    config, trajectory = _build(args)
+    # speeds do not depend on the placement: report how much stays in view, never fail on it
+    config, trajectory = _build(args, default_min_in_view_fraction=0.0)
     if args.fps is not None:
         sample = sample_at_rate(trajectory, args.fps)
     elif isinstance(trajectory, CapturedTrajectory):
@@ -174,6 +205,8 @@ def _run_stats(args: argparse.Namespace) -> int:
         sys.stdout.write("\n")
     else:
         print(format_speed_table(stats, source))
+        if isinstance(trajectory, CapturedTrajectory):
+            print(f"  placed in view: {100 * trajectory.in_view_fraction:.0f} % of the samples")
     return 0
 
 
@@ -182,7 +215,7 @@ def _run_export(args: argparse.Namespace) -> int:
         raise ConfigError(f"{str(args.out)!r} exists; pass --overwrite to replace it")
     if args.out.parent and not args.out.parent.is_dir():
         raise ConfigError(f"folder {str(args.out.parent)!r} of --out does not exist; create it")
-    config, trajectory = _build(args)
+    config, trajectory = _build(args, default_min_in_view_fraction=0.5)
     sample = sample_at_rate(trajectory, args.fps)
     camera = jsonable(FAST_YCB_CAMERA)
     write_trajectory_csv(

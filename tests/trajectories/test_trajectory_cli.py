@@ -167,3 +167,21 @@ def test_demo_writes_the_trajectory_tour(tmp_path: Path, capsys: pytest.CaptureF
     assert len(read_trajectory_csv(out / "trajectory.csv")) == 301
     assert main(["demo", "--out", str(out)]) == 2  # not empty
     assert main(["demo", "--out", str(out), "--overwrite"]) == 0
+
+
+def test_stats_ignore_placement_export_needs_it_in_view(
+    bvh_paths: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """The right hand's scooping in 002_06 is too tall for 0.4-0.9 m: stats still report it,
+    export refuses until the working distance is widened."""
+    source = [str(bvh_paths["002_06"]), "--format", "bvh", "--joint", "CC_Base_R_Hand"]
+    source += ["--relative-to", "CC_Base_Pelvis"]
+    assert main(["trajectory", "stats", *source]) == 0
+    assert "placed in view: 30 % of the samples" in capsys.readouterr().out
+    out = tmp_path / "r.csv"
+    assert main(["trajectory", "export", *source, "--out", str(out)]) == 2
+    assert "only 30 % of the motion stays in view" in capsys.readouterr().err
+    wider = ["--working-distance-m", "0.6", "1.6"]
+    assert main(["trajectory", "export", *source, *wider, "--out", str(out)]) == 0
+    z = read_trajectory_csv(out).T_cam_obj[:, 2, 3]
+    assert z.min() > 0.4 and z.max() < 1.7
