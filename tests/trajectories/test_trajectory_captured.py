@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -31,6 +32,7 @@ from roft_sim.trajectories import (
     build_trajectory,
     read_tum,
     speed_statistics,
+    write_trajectory_csv,
 )
 from roft_sim.trajectories.placement import camera_rotation_from_up, fit_camera_anchor
 
@@ -146,6 +148,38 @@ def test_camera_frame_files_are_not_moved(tmp_path: Path) -> None:
     traj = build_trajectory(CapturedMotionConfig(path=path, format="fast-ycb"), FAST_YCB_CAMERA)
     assert_pose_close(traj.sample(np.arange(10) / 30.0).T_ref_obj, T, atol_m=1e-12, atol_rad=1e-9)
     np.testing.assert_array_equal(traj.T_cam_world, np.eye(4))
+    assert_derivatives_exact(traj)
+
+
+def test_bop_and_csv_sources_replay_with_exact_derivatives(tmp_path: Path) -> None:
+    rng = np.random.default_rng(5)
+    n = 12
+    R = matrix_from_rotvec(np.cumsum(rng.normal(0, 0.2, (n, 3)), axis=0))
+    t = rng.uniform(-0.05, 0.05, (n, 3)) + [0, 0, 0.6]
+    scene = {
+        str(i): [
+            {"cam_R_m2c": R[i].ravel().tolist(), "cam_t_m2c": (1000 * t[i]).tolist(), "obj_id": 2}
+        ]
+        for i in range(n)
+    }
+    (tmp_path / "scene_gt.json").write_text(json.dumps(scene))
+    bop = build_trajectory(CapturedMotionConfig(path=tmp_path, format="bop"), FAST_YCB_CAMERA)
+    assert_pose_close(
+        bop.sample(np.arange(n) / 30.0).T_ref_obj,
+        transform_from_rt(R, t),
+        atol_m=1e-12,
+        atol_rad=1e-9,
+    )
+    assert_derivatives_exact(bop)
+    csv_path = write_trajectory_csv(tmp_path / "t.csv", bop.sample(np.arange(n) / 30.0))
+    csv = build_trajectory(CapturedMotionConfig(path=csv_path, format="csv"), FAST_YCB_CAMERA)
+    assert_pose_close(
+        csv.sample(np.arange(n) / 30.0).T_ref_obj,
+        transform_from_rt(R, t),
+        atol_m=1e-12,
+        atol_rad=1e-9,
+    )
+    assert_derivatives_exact(csv)
 
 
 # --- configs -----------------------------------------------------------------------------------
