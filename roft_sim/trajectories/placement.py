@@ -36,6 +36,7 @@ __all__ = [
     "ViewRegion",
     "fit_camera_anchor",
     "camera_rotation_from_up",
+    "up_vector",
 ]
 
 
@@ -193,17 +194,23 @@ class ViewRegion:
         )
 
     def sample_points(self, count: int, rng: np.random.Generator) -> F64:
-        """``(count, 3)`` points drawn uniformly from the region (rejection sampling) [m]."""
+        """``(count, 3)`` points drawn uniformly from the region (rejection sampling) [m].
+
+        Raises:
+            ValueError: the region is (nearly) empty.
+        """
         depths = np.array([self.near_m, self.far_m])
         xl, xh = self.x_bounds(depths)
         yl, yh = self.y_bounds(depths)
         low = [xl.min(), yl.min(), self.near_m]
         high = [max(xh.max(), xl.min()), max(yh.max(), yl.min()), self.far_m]
         out = np.empty((0, 3))
-        while out.shape[0] < count:
+        for _ in range(1000):
+            if out.shape[0] >= count:
+                return out[:count]
             cand = rng.uniform(low, high, size=(4 * count + 16, 3))
             out = np.concatenate([out, cand[self.contains(cand)]])
-        return out[:count]
+        raise ValueError("the view region is empty or too thin to sample; lower the margin")
 
 
 _AXIS_VECTORS = {
