@@ -26,6 +26,7 @@ from roft_sim.faults.config import (
     MaskStreamFaults,
     PoseFault,
     PoseStreamFaults,
+    compose_faults,
     fault_config_from_mapping,
     fault_presets_dir,
     list_fault_presets,
@@ -82,6 +83,7 @@ __all__ = [
     "list_fault_presets",
     "fault_presets_dir",
     "fault_config_from_mapping",
+    "compose_faults",
     # schedule and stream
     "schedule_detections",
     "DetectionSchedule",

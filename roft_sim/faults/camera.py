@@ -147,8 +147,10 @@ class DepthNoise:
     def apply_depth(self, depth_m: F32, params: Params) -> F32:
         """(H, W) float32 noisy depth [m] (a new array)."""
         rng = np.random.default_rng(params["seed"])
-        noisy = depth_m + rng.normal(0.0, self.sd_m, depth_m.shape)
-        return np.where((depth_m > 0) & (noisy > 0), noisy, 0.0).astype(np.float32)
+        noise = rng.standard_normal(depth_m.shape, dtype=np.float32)
+        noise *= np.float32(self.sd_m)
+        noisy = depth_m + noise
+        return np.where((depth_m > 0) & (noisy > 0), noisy, np.float32(0.0)).astype(np.float32)
 
     def describe(self) -> str:
         return f"depth noise sd {self.sd_m:g} m, {_occurrence_text(self.p, self.burst_frames)}"
@@ -176,8 +178,9 @@ class FlowNoise:
 
     def apply_flow(self, flow: FlowField, params: Params) -> FlowField:
         rng = np.random.default_rng(params["seed"])
-        noisy = flow.flow_px + rng.normal(0.0, self.sd_px, flow.flow_px.shape)
-        return dataclasses.replace(flow, flow_px=noisy.astype(np.float32))
+        noise = rng.standard_normal(flow.flow_px.shape, dtype=np.float32)
+        noise *= np.float32(self.sd_px)
+        return dataclasses.replace(flow, flow_px=(flow.flow_px + noise).astype(np.float32))
 
     def describe(self) -> str:
         return f"flow noise sd {self.sd_px:g} px, {_occurrence_text(self.p, self.burst_frames)}"

@@ -69,6 +69,7 @@ __all__ = [
     "list_fault_presets",
     "fault_presets_dir",
     "fault_config_from_mapping",
+    "compose_faults",
 ]
 
 PoseFault = (
@@ -254,6 +255,61 @@ FaultPreset = FaultConfig
 """Alias: a preset is a :class:`FaultConfig` loaded from ``scenarios/faults/``."""
 
 
+def _merge_first_result(where: str, values: list[str]) -> str:
+    chosen = {v for v in values if v != "delayed"}
+    if len(chosen) > 1:
+        raise ConfigError(
+            f"cannot compose fault configs: {where}.first_result differs ({sorted(chosen)}); "
+            "make them agree"
+        )
+    return chosen.pop() if chosen else "delayed"
+
+
+def compose_faults(*configs: FaultConfig, name: str | None = None) -> FaultConfig:
+    """One configuration with the faults of all ``configs``: per stream, their fault lists
+    concatenated in the given order.
+
+    Composition is associative (``compose(compose(a, b), c) == compose(a, compose(b, c))``).
+    Swapping two configs changes nothing when their faults commute (loss, delay and stamp
+    faults, and faults of different kinds: see docs/faults.md), and changes the result where
+    the listed order matters (content faults, delivery faults, two faults of one kind).
+
+    Raises:
+        ConfigError: the configs set different non-default ``first_result`` or ``seed``, or
+            together have two sampling faults in one stream.
+    """
+    if not configs:
+        return FaultConfig(name=name or "none")
+    seeds = {c.seed for c in configs if c.seed is not None}
+    if len(seeds) > 1:
+        raise ConfigError(f"cannot compose fault configs with different seeds {sorted(seeds)}")
+    pose_first = _merge_first_result("pose", [c.pose.first_result for c in configs])
+    mask_first = _merge_first_result("mask", [c.mask.first_result for c in configs])
+    try:
+        return FaultConfig(
+            name=name or "+".join(c.name for c in configs),
+            description="; ".join(c.description for c in configs if c.description),
+            seed=seeds.pop() if seeds else None,
+            pose=PoseStreamFaults(
+                first_result=pose_first,  # type: ignore[arg-type]
+                faults=tuple(f for c in configs for f in c.pose.faults),
+            ),
+            mask=MaskStreamFaults(
+                first_result=mask_first,  # type: ignore[arg-type]
+                faults=tuple(f for c in configs for f in c.mask.faults),
+            ),
+            camera=CameraFaults(faults=tuple(f for c in configs for f in c.camera.faults)),
+            flow=FlowFaults(faults=tuple(f for c in configs for f in c.flow.faults)),
+        )
+    except ConfigError as e:
+        names = " + ".join(repr(c.name) for c in configs)
+        raise ConfigError(
+            f"cannot compose fault configs {names}: {e} (compose a full preset with fragments "
+            "that add faults but set no network rate: the stress presets already include the "
+            "paper's rate and delay)"
+        ) from None
+
+
 def fault_presets_dir() -> Path:
     """The folder of the preset files, ``scenarios/faults/`` in the repository."""
     return Path(__file__).resolve().parents[2] / "scenarios" / "faults"
@@ -271,11 +327,20 @@ def fault_config_from_mapping(
 def load_faults(name_or_path: str | Path) -> FaultConfig:
     """Loads a preset by name (``none``, ``paper``, ...) or a fault TOML file by path.
 
+    Several presets or files joined by ``+`` (``paper+extra.toml``, where ``extra.toml`` adds
+    faults but no network rate) are loaded one by one and composed with
+    :func:`compose_faults`.
+
     Raises:
         ConfigError: unknown preset (listing the presets), missing file, bad TOML, unknown keys
             or invalid values (naming the file and the dotted key).
     """
     text = str(name_or_path)
+    if "+" in text and not Path(text).is_file():
+        parts = [p.strip() for p in text.split("+")]
+        if any(not p for p in parts):
+            raise ConfigError(f"empty part in composed fault spec {text!r}; e.g. 'paper+bursts'")
+        return compose_faults(*(load_faults(p) for p in parts), name=text)
     path = Path(text)
     if path.suffix == ".toml" or path.is_file() or "/" in text:
         return fault_config_from_mapping(load_toml(path), where=f"{path}:", default_name=path.stem)
