@@ -23,6 +23,7 @@ from roft_sim.assets import (
 )
 from roft_sim.assets.objects import _clear_caches, find_ycb_mesh
 from roft_sim.errors import ConfigError
+from roft_sim.testing.mesh_oracles import closest_point_on_triangles
 
 FAST_YCB = [info.name for info in list_objects()][:6]
 
@@ -31,8 +32,6 @@ FAST_YCB = [info.name for info in list_objects()][:6]
 
 
 def test_the_surface_distance_oracle_agrees_with_trimesh_and_brute_force():
-    from conftest import closest_point_on_triangles
-
     rng = np.random.default_rng(3)
     tri = rng.normal(size=(400, 3, 3))
     p = rng.normal(size=(400, 3)) * 2
