@@ -24,6 +24,7 @@ from roft_sim.config_files import dataclass_from_mapping, load_toml
 from roft_sim.errors import ConfigError
 from roft_sim.geometry import CameraIntrinsics
 from roft_sim.scene.config import CameraMotionConfig, RenderConfig, SceneConfig
+from roft_sim.sensors.networks import NetworksConfig
 from roft_sim.trajectories import TrajectoryConfig
 
 __all__ = ["CameraConfig", "ObjectConfig", "Scenario", "load_scenario", "FAST_YCB_CAMERA_CONFIG"]
@@ -123,6 +124,10 @@ class Scenario:
     """Table, background, lights and hand (``[scene]``)."""
     render: RenderConfig = field(default_factory=RenderConfig)
     """Render options (``[render]``)."""
+    networks: NetworksConfig = field(default_factory=NetworksConfig)
+    """Simulated networks run on every frame when the scenario is generated into a dataset
+    (``[networks]``: pose estimator, segmenter, flow sets; defaults reproduce the reference
+    Fast-YCB layout). See ``docs/generate.md``."""
     seed: int = 0
     """Seed of every random choice of the scenario (textures, depth noise; the trajectory config
     carries its own)."""
