@@ -175,7 +175,7 @@ class Blackout:
             )
 
     @property
-    def stage(self) -> str:  # type: ignore[override]
+    def stage(self) -> str:
         """``loss`` when on capture frames, ``delivery`` when on arrival frames."""
         return "loss" if self.on == "capture" else "delivery"
 

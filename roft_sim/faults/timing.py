@@ -236,14 +236,14 @@ class Rate:
         """
         if self.period_frames is not None:
             return self.period_frames
-        assert self.rate_hz is not None
-        if fps % self.rate_hz:
+        rate_hz = int(self.rate_hz or 0)  # __post_init__ guarantees one of the two is set
+        if fps % rate_hz:
             divisors = [d for d in range(1, fps + 1) if fps % d == 0]
             raise ConfigError(
-                f"rate_hz = {self.rate_hz} does not divide the camera rate {fps} fps; use one of "
+                f"rate_hz = {rate_hz} does not divide the camera rate {fps} fps; use one of "
                 f"{divisors} or give period_frames instead"
             )
-        return fps // self.rate_hz
+        return fps // rate_hz
 
     def sample(self, n_frames: int, fps: int, rng: np.random.Generator) -> tuple[I64, I64]:
         """Capture frames ``(R,)`` of the network runs and their processing delays ``(R,)`` (0)."""
