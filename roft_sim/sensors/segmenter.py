@@ -1,0 +1,224 @@
+"""A Mask R-CNN-like segmenter: the ground-truth visible mask with a detector's artefacts.
+
+The reference masks (``mrcnn_ycbv_bop_pbr``) come from Mask R-CNN run at 640x480: Fast-YCB frames
+(1280x720) are zero-padded to 1280x960 (centred), resized to 640x480, segmented, and the 0/255
+mask is resized back with bilinear interpolation and cropped, so edges take intermediate values;
+ROFT's reader counts any value > 1 as object (``roft_reference.md`` sections 8.5). This model
+reproduces that chain around the ground truth (docs/sensors.md):
+
+1. miss with probability ``miss_probability`` (and always when fewer than ``min_visible_px``
+   pixels are visible);
+2. pad to the inference aspect ratio (centred) and area-resize the visible mask to the
+   inference size;
+3. boundary noise at that resolution: the mask's signed distance plus a per-frame global
+   offset (dilation > 0, erosion < 0) and a smooth random field (``boundary_noise_px`` std,
+   ``boundary_noise_scale_px`` correlation), thresholded at 0;
+4. the mask head's coarse grid: the box crop is area-resized to ``mask_head_px`` squared
+   (28 in Mask R-CNN), resized back bilinearly and thresholded at 0.5;
+5. occasionally a spurious blob (another instance of the class, OR-ed in like the reference
+   tool does);
+6. the 0/255 mask is resized back bilinearly, cropped, and thresholded like the reader.
+
+All distances in the config are in FULL-resolution pixels.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from roft_sim.errors import ConfigError
+
+Bool = NDArray[np.bool_]
+U8 = NDArray[np.uint8]
+F32 = NDArray[np.float32]
+
+__all__ = ["SegmenterConfig", "simulate_mask", "simulate_mask_uint8", "mask_iou"]
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class SegmenterConfig:
+    """Artefacts of the Mask R-CNN-like segmenter (TOML-loadable; see the module doc).
+
+    Defaults give a mean IoU of about 0.9 with the visible mask on Fast-YCB-sized objects at
+    1280x720 (docs/sensors.md): an assumption of a well fine-tuned network, not a calibration
+    (the reference masks are not available here).
+    """
+
+    miss_probability: float = 0.03
+    """Probability of no mask on a frame."""
+    min_visible_px: int = 100
+    """Fewer visible pixels than this (full resolution) is always a miss."""
+    dilation_sigma_px: float = 1.0
+    """Std of the per-frame global dilation (> 0) / erosion (< 0) of the boundary [px]."""
+    dilation_bias_px: float = 0.0
+    """Mean of that dilation [px]."""
+    boundary_noise_px: float = 2.0
+    """Std of the smooth random boundary displacement [px]."""
+    boundary_noise_scale_px: float = 16.0
+    """Correlation length (Gaussian std) of that displacement along the boundary [px]."""
+    spurious_blob_probability: float = 0.02
+    """Probability per frame of one spurious blob somewhere in the image."""
+    spurious_blob_radius_px: tuple[float, float] = (10.0, 40.0)
+    """Range of the blob's semi-axes [px]."""
+    inference_size_px: tuple[int, int] | None = (640, 480)
+    """(width, height) at which the network runs; None = full resolution (no resize)."""
+    mask_head_px: int = 28
+    """Side of the mask head's grid (Mask R-CNN: 28); 0 = no mask-head quantisation."""
+    read_threshold: int = 1
+    """Upscaled 0..255 values above this are object (ROFT's reader: > 1). 127 = plain
+    bilinear-and-round."""
+
+    def __post_init__(self) -> None:
+        owner = "SegmenterConfig"
+        for name in ("miss_probability", "spurious_blob_probability"):
+            value = getattr(self, name)
+            if not 0 <= value <= 1:
+                raise ConfigError(f"{owner}.{name} must be in [0, 1], got {value}")
+        for name in ("dilation_sigma_px", "boundary_noise_px", "boundary_noise_scale_px"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value >= 0):
+                raise ConfigError(f"{owner}.{name} must be a finite number >= 0, got {value}")
+        if not np.isfinite(self.dilation_bias_px):
+            raise ConfigError(f"{owner}.dilation_bias_px must be finite")
+        lo, hi = self.spurious_blob_radius_px
+        if not 0 < lo <= hi:
+            raise ConfigError(
+                f"{owner}.spurious_blob_radius_px must be 0 < min <= max, got {lo, hi}"
+            )
+        if self.inference_size_px is not None and min(self.inference_size_px) < 8:
+            raise ConfigError(
+                f"{owner}.inference_size_px must be at least 8x8 or None, got "
+                f"{self.inference_size_px}"
+            )
+        if self.mask_head_px < 0 or self.min_visible_px < 0:
+            raise ConfigError(f"{owner}.mask_head_px and min_visible_px must be >= 0")
+        if not 0 <= self.read_threshold < 255:
+            raise ConfigError(
+                f"{owner}.read_threshold must be in [0, 254], got {self.read_threshold}"
+            )
+
+
+def mask_iou(a: Bool, b: Bool) -> float:
+    """Intersection over union of two (H, W) bool masks; 1 when both are empty."""
+    union = np.count_nonzero(a | b)
+    return np.count_nonzero(a & b) / union if union else 1.0
+
+
+def _padding(h: int, w: int, wi: int, hi: int) -> tuple[int, int, int, int]:
+    """(padded height, padded width, top, left) of the centred pad to aspect wi:hi."""
+    if w * hi >= h * wi:
+        hp, wp = int(round(w * hi / wi)), w
+    else:
+        hp, wp = h, int(round(h * wi / hi))
+    return hp, wp, (hp - h) // 2, (wp - w) // 2
+
+
+def _signed_distance(mask: Bool) -> F32:
+    """Signed distance to the boundary [px]: > 0 inside, < 0 outside, boundary at 0."""
+    m = mask.astype(np.uint8)
+    inside = cv2.distanceTransform(m, cv2.DIST_L2, 5)
+    outside = cv2.distanceTransform(1 - m, cv2.DIST_L2, 5)
+    return np.where(mask, inside - 0.5, 0.5 - outside).astype(np.float32)
+
+
+def _smooth_field(rng: np.random.Generator, shape: tuple[int, int], sigma_px: float) -> F32:
+    white = rng.standard_normal(shape).astype(np.float32)
+    if sigma_px < 0.3:
+        return white
+    ksize = 2 * int(np.ceil(3.0 * sigma_px)) + 1
+    k1 = cv2.getGaussianKernel(ksize, sigma_px, cv2.CV_64F)[:, 0]
+    blurred = cv2.GaussianBlur(white, (ksize, ksize), sigma_px, borderType=cv2.BORDER_REFLECT)
+    return blurred / np.float32(np.sum(k1**2))
+
+
+def _mask_head(mask: Bool, grid_px: int) -> Bool:
+    rows, cols = np.flatnonzero(mask.any(1)), np.flatnonzero(mask.any(0))
+    if rows.size == 0:
+        return mask
+    r0, r1, c0, c1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
+    crop = mask[r0:r1, c0:c1].astype(np.float32)
+    coarse = cv2.resize(crop, (grid_px, grid_px), interpolation=cv2.INTER_AREA)
+    back = cv2.resize(coarse, (c1 - c0, r1 - r0), interpolation=cv2.INTER_LINEAR)
+    out = np.zeros_like(mask)
+    out[r0:r1, c0:c1] = back > 0.5
+    return out
+
+
+def simulate_mask_uint8(
+    gt_mask: Bool, config: SegmenterConfig, rng: np.random.Generator
+) -> U8 | None:
+    """The segmenter's mask as the reference tool writes it: (H, W) uint8 0..255 with
+    intermediate values on the edges from the bilinear upscale; None for a miss.
+
+    Args:
+        gt_mask: (H, W) bool ground-truth VISIBLE mask, full resolution.
+        config: artefact statistics.
+        rng: generator for this frame (e.g. ``frame_rng(seed, k)``).
+    """
+    gt = np.asarray(gt_mask, dtype=bool)
+    if gt.ndim != 2:
+        raise ValueError(f"gt_mask must be a 2-D bool array, got shape {gt.shape}")
+    h, w = gt.shape
+    c = config
+    if c.inference_size_px is None:
+        wi, hi = w, h
+        hp, wp, top, left = h, w, 0, 0
+    else:
+        wi, hi = c.inference_size_px
+        hp, wp, top, left = _padding(h, w, wi, hi)
+    scale = wi / wp
+
+    # Draws, in a fixed order (a miss ends the frame: each frame has its own generator).
+    if rng.random() < c.miss_probability or np.count_nonzero(gt) < max(c.min_visible_px, 1):
+        return None
+    offset_px = c.dilation_bias_px + c.dilation_sigma_px * rng.standard_normal()
+    field = _smooth_field(rng, (hi, wi), c.boundary_noise_scale_px * scale)
+    blob = rng.random() < c.spurious_blob_probability
+    blob_centre = rng.uniform([left, top], [left + w, top + h]) * scale
+    blob_axes = rng.uniform(*c.spurious_blob_radius_px, size=2) * scale
+    blob_angle = rng.uniform(0.0, 180.0)
+
+    if c.inference_size_px is None:
+        low = gt
+    else:
+        padded = np.zeros((hp, wp), np.float32)
+        padded[top : top + h, left : left + w] = gt
+        low = cv2.resize(padded, (wi, hi), interpolation=cv2.INTER_AREA) >= 0.5
+    if not low.any():
+        return None  # too small for the network at its resolution
+    sdf = _signed_distance(low)
+    noisy = sdf + np.float32(offset_px * scale) + np.float32(c.boundary_noise_px * scale) * field
+    low = noisy > 0
+    if c.mask_head_px > 0:
+        low = _mask_head(low, c.mask_head_px)
+    low_u8 = low.astype(np.uint8) * 255
+    if blob:
+        cv2.ellipse(
+            low_u8,
+            (int(round(blob_centre[0])), int(round(blob_centre[1]))),
+            (max(int(round(blob_axes[0])), 1), max(int(round(blob_axes[1])), 1)),
+            blob_angle,
+            0.0,
+            360.0,
+            255,
+            thickness=-1,
+        )
+    if c.inference_size_px is None:
+        out = low_u8
+    else:
+        up = cv2.resize(low_u8, (wp, hp), interpolation=cv2.INTER_LINEAR)
+        out = np.ascontiguousarray(up[top : top + h, left : left + w])
+    if not (out > c.read_threshold).any():
+        return None
+    return out
+
+
+def simulate_mask(gt_mask: Bool, config: SegmenterConfig, rng: np.random.Generator) -> Bool | None:
+    """The segmenter's mask as a tracker reads it: (H, W) bool (values above
+    ``read_threshold``), or None for a miss. Same draws as :func:`simulate_mask_uint8`."""
+    out = simulate_mask_uint8(gt_mask, config, rng)
+    return None if out is None else out > config.read_threshold

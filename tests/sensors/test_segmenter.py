@@ -1,0 +1,121 @@
+"""Mask R-CNN-like segmenter: exactness without artefacts, resize artefacts, IoU vs config,
+miss rate within a binomial interval, spurious blobs, determinism."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import cv2
+import numpy as np
+import pytest
+from scipy import stats
+
+from roft_sim.errors import ConfigError
+from roft_sim.sensors.flow_sources import frame_rng
+from roft_sim.sensors.segmenter import (
+    SegmenterConfig,
+    mask_iou,
+    simulate_mask,
+    simulate_mask_uint8,
+)
+
+H, W = 180, 320
+SMALL = SegmenterConfig(inference_size_px=(160, 120))
+"""The reference chain scaled to the test image: 320x180 -> padded 320x240 -> 160x120."""
+QUIET = dataclasses.replace(
+    SMALL,
+    miss_probability=0.0,
+    dilation_sigma_px=0.0,
+    boundary_noise_px=0.0,
+    spurious_blob_probability=0.0,
+)
+
+
+def _gt() -> np.ndarray:
+    m = np.zeros((H, W), np.uint8)
+    cv2.rectangle(m, (120, 50), (190, 140), 1, -1)
+    cv2.circle(m, (205, 110), 30, 1, -1)
+    return m.astype(bool)
+
+
+def test_without_artefacts_the_mask_is_the_ground_truth():
+    exact = dataclasses.replace(QUIET, inference_size_px=None, mask_head_px=0)
+    np.testing.assert_array_equal(simulate_mask(_gt(), exact, frame_rng(0, 0)), _gt())
+
+
+def test_resize_chain_gives_intermediate_edges_confined_to_the_boundary():
+    gt = _gt()
+    m8 = simulate_mask_uint8(gt, dataclasses.replace(QUIET, mask_head_px=0), frame_rng(0, 0))
+    assert m8 is not None and m8.dtype == np.uint8
+    values = np.unique(m8)
+    assert values[0] == 0 and values[-1] == 255 and len(values) > 3  # bilinear edge values
+    edge = (m8 > 0) & (m8 < 255)
+    ring = cv2.dilate(gt.astype(np.uint8), np.ones((7, 7))) & ~cv2.erode(
+        gt.astype(np.uint8), np.ones((7, 7))
+    ).astype(bool)
+    assert edge[~ring.astype(bool)].sum() == 0  # artefacts only within 3 px of the boundary
+    read = simulate_mask(gt, dataclasses.replace(QUIET, mask_head_px=0), frame_rng(0, 0))
+    np.testing.assert_array_equal(read, m8 > 1)  # the reader's "> 1" rule
+    assert read.sum() > gt.sum()  # "> 1" of a bilinear upscale dilates slightly
+    assert mask_iou(read, gt) > 0.93
+
+
+def test_iou_decreases_with_boundary_noise():
+    gt = _gt()
+    means = []
+    for noise_px in (0.0, 1.0, 3.0, 6.0):
+        cfg = dataclasses.replace(QUIET, boundary_noise_px=noise_px, dilation_sigma_px=noise_px / 2)
+        ious = [mask_iou(simulate_mask(gt, cfg, frame_rng(1, k)), gt) for k in range(40)]
+        means.append(np.mean(ious))
+    assert all(a > b for a, b in zip(means, means[1:], strict=False)), means
+    assert means[0] > 0.9 and means[-1] < 0.85
+
+
+def test_miss_rate_within_binomial_interval():
+    gt = _gt()[::4, ::4]  # a tiny image: this test is about the miss draw only
+    cfg = dataclasses.replace(
+        QUIET, miss_probability=0.15, inference_size_px=None, mask_head_px=0, min_visible_px=10
+    )
+    n = 1000
+    misses = sum(simulate_mask(gt, cfg, frame_rng(2, k)) is None for k in range(n))
+    lo, hi = stats.binom.interval(0.999, n, 0.15)
+    assert lo <= misses <= hi, misses
+    tiny = np.zeros((H, W), bool)
+    tiny[10:15, 10:15] = True  # 25 px < min_visible_px
+    assert simulate_mask(tiny, QUIET, frame_rng(2, 0)) is None
+
+
+def test_spurious_blob_appears_away_from_the_object():
+    gt = _gt()
+    cfg = dataclasses.replace(QUIET, spurious_blob_probability=1.0)
+    far = ~cv2.dilate(gt.astype(np.uint8), np.ones((41, 41))).astype(bool)
+    hits = [simulate_mask(gt, cfg, frame_rng(3, k))[far].sum() > 0 for k in range(20)]
+    assert sum(hits) >= 10  # most blobs land away from the object
+    assert all(simulate_mask(gt, QUIET, frame_rng(3, k))[far].sum() == 0 for k in range(5))
+
+
+def test_deterministic_per_rng_and_config_errors():
+    gt = _gt()
+    a = simulate_mask_uint8(gt, SMALL, frame_rng(4, 7))
+    b = simulate_mask_uint8(gt, SMALL, frame_rng(4, 7))
+    c = simulate_mask_uint8(gt, SMALL, frame_rng(4, 8))
+    np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(a, c)
+    with pytest.raises(ConfigError, match="miss_probability must be in"):
+        SegmenterConfig(miss_probability=2.0)
+    with pytest.raises(ConfigError, match="spurious_blob_radius_px"):
+        SegmenterConfig(spurious_blob_radius_px=(5.0, 1.0))
+    with pytest.raises(ValueError, match="2-D"):
+        simulate_mask(np.zeros(5, bool), SMALL, frame_rng(0))
+
+
+def test_config_loads_from_toml(tmp_path):
+    from roft_sim.config_files import load_dataclass_toml
+
+    path = tmp_path / "seg.toml"
+    path.write_text("miss_probability = 0.1\ninference_size_px = [320, 240]\n")
+    cfg = load_dataclass_toml(SegmenterConfig, path)
+    assert cfg.inference_size_px == (320, 240) and cfg.miss_probability == 0.1
+    path.write_text("miss_prob = 0.1\n")
+    with pytest.raises(ConfigError, match="did you mean 'miss_probability'"):
+        load_dataclass_toml(SegmenterConfig, path)
