@@ -17,6 +17,7 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import enum
+import re
 import tomllib
 import types
 import typing
@@ -29,6 +30,8 @@ import numpy as np
 from roft_sim.errors import ConfigError, located
 
 T = TypeVar("T")
+
+_INDEX_SUFFIX = re.compile(r"\[\d+\]$")
 
 __all__ = [
     "load_toml",
@@ -80,9 +83,16 @@ def dataclass_from_mapping(cls: type[T], data: Mapping[str, Any], *, where: str 
 
 
 def _field_path(where: str, key: str | int) -> str:
+    """``where.key``, ``where[i]``; after a file name or ``file [table]`` a space separates."""
     if isinstance(key, int):
         return f"{where}[{key}]"
-    return f"{where}.{key}" if where and not where.endswith(("]", ":")) else f"{where} {key}"
+    if (
+        not where
+        or where.endswith(":")
+        or (where.endswith("]") and not _INDEX_SUFFIX.search(where))
+    ):
+        return f"{where} {key}".strip()
+    return f"{where}.{key}"
 
 
 def _build_dataclass(cls: type, data: Any, where: str) -> Any:

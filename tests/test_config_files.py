@@ -70,6 +70,10 @@ def test_builds_nested_and_coerces_int_to_float():
         ({"name": "x", "inner": {"rate_hz": 2.5}}, "expected an integer"),
         ({"name": "x", "size": [1]}, "expected 2 values"),
         ({"name": "x", "faults": [{"kind": "delya"}]}, r"did you mean 'delay'"),
+        (
+            {"name": "x", "faults": [{"kind": "delay", "frames": "2"}]},
+            r"config\.faults\[0\]\.frames: expected an integer",
+        ),
         ({"name": "x", "inner": {"rate_hz": True}}, "expected an integer"),
     ],
 )

@@ -67,5 +67,5 @@ def test_show_errors_exit_with_usage_code(capsys, tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_text('[pose]\nfaults = [{ kind = "delay", frames = "six" }]\n')
     assert main(["faults", "show", str(bad)]) == 2
-    assert "bad.toml: pose.faults[0] frames: expected an integer" in capsys.readouterr().err
+    assert "bad.toml: pose.faults[0].frames: expected an integer" in capsys.readouterr().err
     assert main(["faults"]) == 2
