@@ -227,3 +227,47 @@ def test_every_ci_scenario_renders(name):
     if scenario.camera.motion is not None:
         static = (frames[0].body_index == 0) & flow.valid
         assert np.median(np.linalg.norm(flow.flow_px[static], axis=-1)) > 0.1
+
+
+def test_docs_list_every_key_and_the_example_loads(tmp_path):
+    import dataclasses
+    import re
+
+    from roft_sim.scenario import CameraConfig, ObjectConfig
+    from roft_sim.scene.config import (
+        BackgroundConfig,
+        LightConfig,
+        RenderConfig,
+        SceneConfig,
+        TableConfig,
+    )
+    from roft_sim.sensors.depth_noise import KinectAzureDepthNoise
+
+    doc = (REPO / "docs" / "scenarios.md").read_text()
+    configs = (
+        Scenario,
+        CameraConfig,
+        CameraSwayConfig,
+        ObjectConfig,
+        SceneConfig,
+        TableConfig,
+        BackgroundConfig,
+        LightConfig,
+        HandConfig,
+        RenderConfig,
+        RealSenseDepthNoise,
+        KinectAzureDepthNoise,
+    )
+    missing = [
+        f"{cls.__name__}.{f.name}"
+        for cls in configs
+        for f in dataclasses.fields(cls)
+        if not any(
+            token in doc
+            for token in (f"`{f.name}`", f"`{f.name}", f"{f.name}`", f"[{f.name}]", f".{f.name}]")
+        )
+    ]
+    assert not missing, f"undocumented keys: {missing}"
+    example = re.findall(r"```toml\n(.*?)```", doc, flags=re.S)[-1]
+    s = load_scenario(_write(tmp_path, example))
+    assert s.scene.hand.enabled and s.render.motion_blur_subframes == 3

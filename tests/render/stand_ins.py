@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from roft_sim.geometry import CameraIntrinsics, matrix_from_rotvec, skew
+from roft_sim.geometry import CameraIntrinsics, matrix_from_rotvec
 from roft_sim.scene.textures import procedural_texture
 
 
@@ -119,7 +119,9 @@ __all__ = [
     "SinusoidalTrajectory",
     "SMALL_CAMERA",
     "OFF_CENTRE_CAMERA",
-    "skew",
+    "render_posed",
+    "small_scenario",
+    "open_renderer",
 ]
 
 
