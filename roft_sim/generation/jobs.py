@@ -16,6 +16,8 @@ from importlib import metadata as importlib_metadata
 from pathlib import Path
 from typing import Any, Literal
 
+import numpy as np
+
 from roft_sim.config_files import jsonable
 from roft_sim.datasets import SequenceWriter, open_sequence, open_writer
 from roft_sim.datasets.metadata import dumps_json
@@ -221,6 +223,7 @@ def prepare_jobs(
         assets = load_object(
             scenario.object.name_or_path, assets_dir=assets_dir, cache_dir=cache_dir
         )
+        _check_trajectory_length(scenario, assets.mesh)
         metadata = generation_metadata(
             scenario,
             object_source=assets.source,
@@ -254,6 +257,23 @@ def prepare_jobs(
             )
         )
     return jobs
+
+
+def _check_trajectory_length(scenario: Scenario, mesh: Any) -> None:
+    """Fails before any output is written when the trajectory is shorter than the scenario
+    (the same test :class:`~roft_sim.render.SceneRenderer` makes)."""
+    from roft_sim.trajectories import build_trajectory
+
+    radius = float(np.linalg.norm(np.asarray(mesh.vertices_m), axis=1).max())
+    traj = build_trajectory(scenario.trajectory, scenario.intrinsics, object_radius_m=radius)
+    last_s = float(traj.start_s) + (scenario.n_frames - 1) / scenario.fps
+    if last_s > float(traj.end_s) + 1e-9:
+        longest = int(np.floor((float(traj.end_s) - float(traj.start_s)) * scenario.fps + 1e-9)) + 1
+        raise ConfigError(
+            f"scenario {scenario.name!r} needs {scenario.n_frames} frames at {scenario.fps} fps "
+            f"(until {last_s:.3f} s) but its trajectory ends at {float(traj.end_s):.3f} s; use "
+            f"at most --frames {longest}, or lengthen the trajectory"
+        )
 
 
 def _check_finished_or_complete(writer: SequenceWriter, metadata: Mapping[str, Any]) -> None:

@@ -271,6 +271,14 @@ def _budgeted(units: list[WorkUnit], budget: int | None) -> list[WorkUnit]:
     return out
 
 
+def _unit_failed(unit: WorkUnit, jobs: Sequence[SequenceJob], e: Exception) -> GenerationError:
+    return GenerationError(
+        f"generating frames {unit.start}-{unit.stop - 1} of "
+        f"{jobs[unit.sequence].sequence_name!r} failed: {type(e).__name__}: {e}; the frames "
+        "written so far are kept: fix the cause and run again with --resume"
+    )
+
+
 def _run_in_process(
     units: list[WorkUnit],
     jobs: Sequence[SequenceJob],
@@ -281,9 +289,14 @@ def _run_in_process(
     state = _WorkerState(jobs, options, bar.update)
     try:
         for unit in units:
-            n = run_work_unit(
-                unit, jobs[unit.sequence], state.generator(unit.sequence), report=bar.update
-            )
+            try:
+                n = run_work_unit(
+                    unit, jobs[unit.sequence], state.generator(unit.sequence), report=bar.update
+                )
+            except RoftSimError:
+                raise
+            except Exception as e:
+                raise _unit_failed(unit, jobs, e) from e
             on_unit_done(unit, n)
     finally:
         state.close()
@@ -334,12 +347,7 @@ def _run_in_pool(
                 except RoftSimError:
                     raise
                 except Exception as e:
-                    raise GenerationError(
-                        f"generating frames {unit.start}-{unit.stop - 1} of "
-                        f"{jobs[unit.sequence].sequence_name!r} failed: {type(e).__name__}: {e}; "
-                        "the frames written so far are kept: fix the cause and run again with "
-                        "--resume"
-                    ) from e
+                    raise _unit_failed(unit, jobs, e) from e
                 on_unit_done(unit, n)
         drain()
     finally:
