@@ -194,14 +194,22 @@ def _run(args: argparse.Namespace) -> int:
         gl_backend=backend,
         progress=not (args.no_progress or args.quiet),
     )
-    out = prepare_output_dir(args.out, overwrite=args.overwrite, resume=args.resume)
+    if args.out.exists() and not args.out.is_dir():
+        raise ConfigError(f"output {str(args.out)!r} is a file; give a directory path")
+    if args.overwrite and args.resume:
+        raise ConfigError("--overwrite and --resume contradict each other; pick one")
+    if not (args.overwrite or args.resume) and args.out.is_dir() and any(args.out.iterdir()):
+        prepare_output_dir(args.out)  # raises the standard "not empty" error
     summary = generate_dataset(
         scenarios,
-        out,
+        args.out,
         options,
         overrides=overrides,
         sequence_naming=PRESETS[preset].sequence_names if preset else "scenario",
         preset=preset,
+        prepare_output=lambda out: prepare_output_dir(
+            out, overwrite=args.overwrite, resume=args.resume
+        ),
     )
     if args.json:
         print(json.dumps(summary.report(), indent=2))

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from importlib import metadata as importlib_metadata
 from pathlib import Path
@@ -204,8 +204,10 @@ def prepare_jobs(
     assets_dir: Path | None,
     cache_dir: Path | None,
     gl_backend: str | None,
+    prepare_output: Callable[[Path], Any] | None = None,
 ) -> list[SequenceJob]:
-    """Opens one writer per scenario (see the module doc).
+    """Opens one writer per scenario (see the module doc). ``prepare_output(out_dir)`` is
+    called after every check and before the first writer opens.
 
     Raises:
         ConfigError: duplicate sequence names, an output that exists without ``resume``, a
@@ -218,12 +220,19 @@ def prepare_jobs(
         raise ConfigError(
             f"two scenarios would write the same sequence {dup}; give each scenario its own name"
         )
-    jobs = []
-    for index, (scenario, name) in enumerate(zip(scenarios, sequence_names, strict=True)):
+    loaded = []
+    for scenario in scenarios:  # every check before any output is written
         assets = load_object(
             scenario.object.name_or_path, assets_dir=assets_dir, cache_dir=cache_dir
         )
         _check_trajectory_length(scenario, assets.mesh)
+        loaded.append(assets)
+    if prepare_output is not None:
+        prepare_output(out_dir)
+    jobs = []
+    for index, (scenario, name, assets) in enumerate(
+        zip(scenarios, sequence_names, loaded, strict=True)
+    ):
         metadata = generation_metadata(
             scenario,
             object_source=assets.source,

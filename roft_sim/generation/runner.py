@@ -364,6 +364,7 @@ def generate_dataset(
     overrides: ScenarioOverrides | None = None,
     sequence_naming: Literal["scenario", "object"] = "scenario",
     preset: str | None = None,
+    prepare_output: Callable[[Path], Any] | None = None,
 ) -> GenerationSummary:
     """Generates one sequence per scenario into ``out_dir`` (created if needed).
 
@@ -377,6 +378,9 @@ def generate_dataset(
         overrides: frames / resolution / seed applied to every scenario (default: none).
         sequence_naming: name sequences after the scenario or after its object.
         preset: the preset the scenarios come from (recorded in the metadata).
+        prepare_output: called with ``out_dir`` once every scenario is checked (objects
+            loaded, trajectories long enough) and before anything is written, e.g. to empty the
+            folder for ``--overwrite``.
 
     Returns:
         A :class:`GenerationSummary`.
@@ -403,6 +407,7 @@ def generate_dataset(
         assets_dir=options.assets_dir,
         cache_dir=options.cache_dir,
         gl_backend=options.gl_backend,
+        prepare_output=prepare_output,
     )
     units = _budgeted(
         plan_work_units([j.missing_frames for j in jobs], chunk_frames=options.chunk_frames),
