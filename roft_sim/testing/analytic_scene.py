@@ -200,7 +200,33 @@ def raycast_box(
     h = np.asarray(half_extents_m, dtype=np.float64)
     T = np.asarray(T_cam_obj, dtype=np.float64)
     R, t = T[:3, :3], T[:3, 3]
-    d = _ray_directions(intrinsics)
+    shape = intrinsics.shape
+    depth = np.zeros(shape)
+    face = np.full(shape, -1, dtype=np.int64)
+    p_obj = np.zeros(shape + (3,))
+    # cast only the rays of the box's projected bounding rectangle (when it is in front)
+    corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * h
+    c_cam = corners @ R.T + t
+    if (c_cam[:, 2] > 1e-6).all():
+        u = intrinsics.fx_px * c_cam[:, 0] / c_cam[:, 2] + intrinsics.cx_px
+        v = intrinsics.fy_px * c_cam[:, 1] / c_cam[:, 2] + intrinsics.cy_px
+        c0 = max(int(np.floor(u.min())) - 1, 0)
+        c1 = min(int(np.ceil(u.max())) + 2, intrinsics.width_px)
+        r0 = max(int(np.floor(v.min())) - 1, 0)
+        r1 = min(int(np.ceil(v.max())) + 2, intrinsics.height_px)
+        if c0 >= c1 or r0 >= r1:
+            return depth, face, p_obj
+    else:
+        r0, r1, c0, c1 = 0, intrinsics.height_px, 0, intrinsics.width_px
+    vv, uu = np.mgrid[r0:r1, c0:c1].astype(np.float64)
+    d = np.stack(
+        [
+            ((uu - intrinsics.cx_px) / intrinsics.fx_px).ravel(),
+            ((vv - intrinsics.cy_px) / intrinsics.fy_px).ravel(),
+            np.ones(uu.size),
+        ],
+        axis=1,
+    )
     o = R.T @ (-t)  # camera origin in the object frame
     e = d @ R  # directions in the object frame: R^T d
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -215,15 +241,17 @@ def raycast_box(
     lo = np.where(parallel, np.where(inside_slab, -np.inf, np.inf), lo)
     hi = np.where(parallel, np.where(inside_slab, np.inf, -np.inf), hi)
     axis = np.argmax(lo, axis=1)
-    t_near = lo[np.arange(lo.shape[0]), axis]
+    rows = np.arange(lo.shape[0])
+    t_near = lo[rows, axis]
     t_far = hi.min(axis=1)
     hit = (t_near <= t_far) & (t_near > 1e-9)
-    depth = np.where(hit, t_near, 0.0)
-    p_obj = np.where(hit[:, None], o + t_near[:, None] * e, 0.0)
-    sign_pos = p_obj[np.arange(p_obj.shape[0]), axis] > 0
-    face = np.where(hit, 2 * axis + sign_pos, -1)
-    shape = intrinsics.shape
-    return depth.reshape(shape), face.reshape(shape).astype(np.int64), p_obj.reshape(shape + (3,))
+    sub = (r1 - r0, c1 - c0)
+    p_sub = np.where(hit[:, None], o + t_near[:, None] * e, 0.0)
+    sign_pos = p_sub[rows, axis] > 0
+    depth[r0:r1, c0:c1] = np.where(hit, t_near, 0.0).reshape(sub)
+    face[r0:r1, c0:c1] = np.where(hit, 2 * axis + sign_pos, -1).reshape(sub)
+    p_obj[r0:r1, c0:c1] = p_sub.reshape(sub + (3,))
+    return depth, face, p_obj
 
 
 def _texture_waves(seed: int) -> tuple[F64, F64, F64]:

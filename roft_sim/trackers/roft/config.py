@@ -51,16 +51,12 @@ class MaskSyncConfig:
     """How a tracked sub-pixel position picks its pixel: ``nearest`` (the pixel whose centre is
     nearest, right for pixel centres at integer coordinates) or ``truncate`` (C truncation, as the
     reference, a bias of half a pixel towards the top-left)."""
-    hole_filling_px: int = 1
-    """Radius of a morphological closing (square window of side 2r+1) applied after each warp.
-    Forward splatting leaves holes where the object grows in the image; 1 closes 1-px gaps
-    (the reference has none: 0)."""
-
-    def __post_init__(self) -> None:
-        if self.hole_filling_px < 0 or self.hole_filling_px > 16:
-            raise ConfigError(
-                f"mask.hole_filling_px must be in [0, 16] pixels, got {self.hole_filling_px}"
-            )
+    cleanup: Literal["none", "close", "majority"] = "majority"
+    """Clean-up of the warped mask on 3x3 neighbourhoods after every flow step. ``majority``
+    (a binary median) fills the holes forward splatting leaves where the object grows in the
+    image and removes points scattered by flow noise; ``close`` (morphological closing) only
+    fills holes; ``none`` is the reference: a delayed mask is tracked point by point through
+    all buffered flows and rasterised once."""
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

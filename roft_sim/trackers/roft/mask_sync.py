@@ -15,8 +15,10 @@ dropped. Differences from the reference (see docs/roft.md):
   does not exist here;
 - the pixel of a sub-pixel position is the nearest one by default (pixel centres are at integer
   coordinates); ``rounding = "truncate"`` gives the reference's C truncation;
-- an optional morphological closing (``hole_filling_px``) fills the holes splatting leaves where
-  the object grows in the image (the reference has none; default radius 1 px);
+- by default the mask is cleaned up after every warp step by a 3x3 binary median
+  (``cleanup = "majority"``), which fills the holes splatting leaves where the object grows in
+  the image and removes points scattered by flow noise; the reference has no clean-up
+  (``cleanup = "none"``: chained tracking, rasterised once at the end);
 - a delayed mask is warped through the buffered flows from ITS capture frame to now (any delay,
   not the reference's fixed last six), and a mask older than the one in use is ignored.
 """
@@ -124,50 +126,65 @@ def _to_pixels(
     return inside, (u + off).astype(np.int64), (v + off).astype(np.int64)
 
 
-def _dilate(a: NDArray[np.bool_], r: int) -> NDArray[np.bool_]:
+def _dilate(a: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """Dilation by the 3x3 square (separable)."""
     out = a.copy()
-    for s in range(1, r + 1):
-        out[s:, :] |= a[:-s, :]
-        out[:-s, :] |= a[s:, :]
+    out[1:, :] |= a[:-1, :]
+    out[:-1, :] |= a[1:, :]
     b = out.copy()
-    for s in range(1, r + 1):
-        out[:, s:] |= b[:, :-s]
-        out[:, :-s] |= b[:, s:]
+    out[:, 1:] |= b[:, :-1]
+    out[:, :-1] |= b[:, 1:]
     return out
 
 
-def _erode(a: NDArray[np.bool_], r: int) -> NDArray[np.bool_]:
-    """Erosion by a (2r+1)^2 square, pixels outside the window counting as set (the window is
-    padded, so nothing set reaches its border)."""
+def _erode(a: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """Erosion by the 3x3 square; the window is padded, so nothing set touches its border."""
     out = a.copy()
-    for s in range(1, r + 1):
-        out[s:, :] &= a[:-s, :]
-        out[:-s, :] &= a[s:, :]
+    out[1:, :] &= a[:-1, :]
+    out[:-1, :] &= a[1:, :]
     b = out.copy()
-    for s in range(1, r + 1):
-        out[:, s:] &= b[:, :-s]
-        out[:, :-s] &= b[:, s:]
+    out[:, 1:] &= b[:, :-1]
+    out[:, :-1] &= b[:, 1:]
     return out
 
 
-def _splat(u: I64, v: I64, shape: tuple[int, int], hole_filling_px: int) -> PixelSet:
-    """Unique sorted pixel set of integer positions already inside the image, optionally closed
-    morphologically (a (2r+1)^2 square)."""
+def _majority(a: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """3x3 binary median: set where at least 5 of the 9 pixels of the window are set."""
+    c = a.astype(np.uint8)
+    rows = c.copy()
+    rows[1:, :] += c[:-1, :]
+    rows[:-1, :] += c[1:, :]
+    out = rows.copy()
+    out[:, 1:] += rows[:, :-1]
+    out[:, :-1] += rows[:, 1:]
+    return out >= 5
+
+
+CLEANUPS = ("none", "close", "majority")
+"""Mask clean-ups after each warp step (see ``MaskSyncConfig.cleanup``)."""
+
+
+def _splat(u: I64, v: I64, shape: tuple[int, int], cleanup: str) -> PixelSet:
+    """Unique sorted pixel set of integer positions already inside the image, optionally
+    cleaned up on the 3x3 neighbourhood (``close`` or ``majority``)."""
     if u.size == 0:
         return PixelSet.empty(shape)
     h, w = shape
-    pad = hole_filling_px + 1 if hole_filling_px else 0
+    pad = 2 if cleanup != "none" else 0
     r0, c0 = int(v.min()) - pad, int(u.min()) - pad
     rows = int(v.max()) - r0 + 1 + pad
     cols = int(u.max()) - c0 + 1 + pad
     window = np.zeros(rows * cols, dtype=bool)
     window[(v - r0) * cols + (u - c0)] = True
-    if hole_filling_px:
-        window = _erode(_dilate(window.reshape(rows, cols), hole_filling_px), hole_filling_px)
+    if cleanup == "close":
+        window = _erode(_dilate(window.reshape(rows, cols)))
+    elif cleanup == "majority":
+        window = _majority(window.reshape(rows, cols))
     flat = np.flatnonzero(window)
-    rr = flat // cols + r0
-    cc = flat - (flat // cols) * cols + c0
-    if hole_filling_px and (r0 < 0 or c0 < 0 or r0 + rows > h or c0 + cols > w):
+    rr = flat // cols
+    cc = flat - rr * cols + c0
+    rr += r0
+    if cleanup != "none" and (r0 < 0 or c0 < 0 or r0 + rows > h or c0 + cols > w):
         keep = (rr >= 0) & (rr < h) & (cc >= 0) & (cc < w)
         rr, cc = rr[keep], cc[keep]
     return PixelSet((rr * w + cc).astype(np.int64), shape)
@@ -178,22 +195,32 @@ def warp_pixels(
     flows: Sequence[FlowField],
     *,
     rounding: str = "nearest",
-    hole_filling_px: int = 0,
+    cleanup: str = "none",
 ) -> PixelSet:
-    """Moves a mask through consecutive flows by chained point tracking (forward splatting).
+    """Moves a mask through consecutive flows by point tracking (forward splatting).
 
     Args:
         pixels: the mask in the frame the first flow starts from.
         flows: flows in chronological order (each F maps its ``from_k`` to its ``to_k``).
         rounding: ``nearest`` or ``truncate``: how a sub-pixel position picks its pixel, both
             for the flow lookup and for the landing pixel.
-        hole_filling_px: radius of a morphological closing of the result (0 = none).
+        cleanup: ``none``: chained tracking, each point keeps its sub-pixel position through all
+            flows and is rasterised once at the end (the reference); ``close`` or ``majority``:
+            the mask is rasterised and cleaned up on its 3x3 neighbourhoods after EACH flow
+            (morphological closing, or the binary median that fills splatting holes and removes
+            stray points).
 
     Returns:
         The mask in the frame the last flow ends at. Points that leave the image or hit an
         invalid flow vector are dropped.
     """
-    if not flows and not hole_filling_px:
+    if cleanup not in CLEANUPS:
+        raise ValueError(f"cleanup must be one of {CLEANUPS}, got {cleanup!r}")
+    if cleanup != "none" and len(flows) > 1:
+        for flow in flows:
+            pixels = warp_pixels(pixels, [flow], rounding=rounding, cleanup=cleanup)
+        return pixels
+    if not flows:
         return pixels
     shape = pixels.shape
     w = shape[1]
@@ -210,7 +237,7 @@ def warp_pixels(
         inside, u_i, v_i = _to_pixels(u, v, shape, rounding)
         if u_i.shape != u.shape:
             u, v = u[inside], v[inside]
-    return _splat(u_i, v_i, shape, hole_filling_px)
+    return _splat(u_i, v_i, shape, cleanup)
 
 
 @dataclass(frozen=True, slots=True)
@@ -277,9 +304,7 @@ class MaskSynchroniser:
                     if best.capture_k < j <= k and self._flows[j].from_k >= best.capture_k
                 ]
                 counts["warp_flows"] = len(chain)
-                pixels = warp_pixels(
-                    pixels, chain, rounding=cfg.rounding, hole_filling_px=cfg.hole_filling_px
-                )
+                pixels = warp_pixels(pixels, chain, rounding=cfg.rounding, cleanup=cfg.cleanup)
             self._pixels, self._capture_k = pixels, best.capture_k
         elif cfg.flow_aided and self._pixels is not None and k in self._flows:
             counts["warp_flows"] = 1
@@ -287,7 +312,7 @@ class MaskSynchroniser:
                 self._pixels,
                 [self._flows[k]],
                 rounding=cfg.rounding,
-                hole_filling_px=cfg.hole_filling_px,
+                cleanup=cfg.cleanup,
             )
         for j in [j for j in self._flows if j <= k - self._horizon]:
             del self._flows[j]

@@ -132,6 +132,7 @@ class RoftTracker:
         self._last_k: int | None = None
         self._last_t: float | None = None
         self._previous: _PreviousFrame | None = None
+        self._mask: PixelSet | None = None
         self._totals: Counter[str] = Counter()
 
     # ------------------------------------------------------------------ per-frame inputs
@@ -219,12 +220,10 @@ class RoftTracker:
                 self._beliefs[first - 1] = self._initial_belief_from_estimate(self._initial)
         else:
             earliest = self._earliest_pose()
-            if earliest is None:
-                return None
             init = self._init_pose
-            if init is None or (earliest.capture_k, earliest.detection_id) < (
-                init.capture_k,
-                init.detection_id,
+            if earliest is not None and (
+                init is None
+                or (earliest.capture_k, earliest.detection_id) < (init.capture_k, init.detection_id)
             ):
                 self._init_pose = earliest
                 c = earliest.capture_k
@@ -233,6 +232,8 @@ class RoftTracker:
                     del self._beliefs[j]
                 self._beliefs[c - 1] = prior
                 return c, prior
+            if init is None:
+                return None
         start = min([p.capture_k for p in new] + [k])
         return start, self._beliefs[start - 1]
 
@@ -304,6 +305,7 @@ class RoftTracker:
             masks: tuple[MaskDetection, ...] = obs.masks
             mask_step = self._mask_sync.step(k, obs.flow if cfg.use_flow else None, masks)
             pixels, mask_counts = mask_step.pixels, mask_step.counts
+        self._mask = pixels
         twist, flow_pixels = (None, 0)
         if cfg.use_flow:
             twist, flow_pixels = self._velocity_step(obs, pixels)
@@ -385,6 +387,11 @@ class RoftTracker:
         if self._last_k is None:
             return None
         return self._beliefs.get(self._last_k)
+
+    @property
+    def mask(self) -> PixelSet | None:
+        """The synchronised mask of the last processed frame (None before any mask)."""
+        return self._mask
 
     @property
     def velocity_belief(self) -> tuple[F64, F64]:
