@@ -20,9 +20,6 @@ from numpy.typing import ArrayLike, NDArray
 
 from roft_sim.geometry.camera import (
     CameraIntrinsics,
-    backproject_pixels,
-    pixel_grid,
-    project_points,
 )
 
 __all__ = ["rigid_flow", "object_and_static_motions", "DEFAULT_OCCLUSION_TOLERANCE"]
@@ -91,31 +88,46 @@ def rigid_flow(
             f"body_index refers to body {body.max()} but only {M.shape[0]} motions given"
         )
 
-    uv = pixel_grid(intrinsics)
     ok = (depth > 0) & (body >= 0)
     rows, cols = np.nonzero(ok)
-    X = backproject_pixels(intrinsics, uv[rows, cols], depth[rows, cols])
-    Mb = M[body[rows, cols]]
-    X_to = np.einsum("nij,nj->ni", Mb[:, :3, :3], X) + Mb[:, :3, 3]
-    uv_to = project_points(intrinsics, X_to)
+    z = depth[rows, cols]
+    x = (cols - intrinsics.cx_px) * (z / intrinsics.fx_px)
+    y = (rows - intrinsics.cy_px) * (z / intrinsics.fy_px)
+    b = body[rows, cols]
+    # One rigid map per body (few bodies): no per-pixel 4x4 matrices.
+    x_to, y_to, z_to = np.empty_like(z), np.empty_like(z), np.empty_like(z)
+    for i in range(M.shape[0]):
+        sel = b == i
+        if not sel.any():
+            continue
+        R, t = M[i, :3, :3], M[i, :3, 3]
+        xs, ys, zs = x[sel], y[sel], z[sel]
+        x_to[sel] = R[0, 0] * xs + R[0, 1] * ys + R[0, 2] * zs + t[0]
+        y_to[sel] = R[1, 0] * xs + R[1, 1] * ys + R[1, 2] * zs + t[1]
+        z_to[sel] = R[2, 0] * xs + R[2, 1] * ys + R[2, 2] * zs + t[2]
+    in_front = z_to > 0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u_to = intrinsics.fx_px * x_to / z_to + intrinsics.cx_px
+        v_to = intrinsics.fy_px * y_to / z_to + intrinsics.cy_px
     inside = (
-        np.isfinite(uv_to).all(axis=1)
-        & (uv_to[:, 0] >= -0.5)
-        & (uv_to[:, 0] < intrinsics.width_px - 0.5)
-        & (uv_to[:, 1] >= -0.5)
-        & (uv_to[:, 1] < intrinsics.height_px - 0.5)
+        in_front
+        & (u_to >= -0.5)
+        & (u_to < intrinsics.width_px - 0.5)
+        & (v_to >= -0.5)
+        & (v_to < intrinsics.height_px - 0.5)
     )
     if depth_to_m is not None:
         depth_to = np.asarray(depth_to_m, dtype=np.float64)
-        tgt = np.where(inside[:, None], np.rint(np.nan_to_num(uv_to)), 0).astype(np.int64)
-        d_seen = depth_to[tgt[:, 1], tgt[:, 0]]
-        z = X_to[:, 2]
-        tol = occlusion_tolerance[0] + occlusion_tolerance[1] * z
-        occluded = (d_seen > 0) & (d_seen < z - tol)
+        tu = np.where(inside, np.rint(np.where(inside, u_to, 0.0)), 0).astype(np.int64)
+        tv = np.where(inside, np.rint(np.where(inside, v_to, 0.0)), 0).astype(np.int64)
+        d_seen = depth_to[tv, tu]
+        tol = occlusion_tolerance[0] + occlusion_tolerance[1] * z_to
+        occluded = (d_seen > 0) & (d_seen < z_to - tol)
         inside &= ~occluded
     flow = np.zeros(intrinsics.shape + (2,), dtype=np.float32)
     valid = np.zeros(intrinsics.shape, dtype=bool)
     r, c = rows[inside], cols[inside]
-    flow[r, c] = (uv_to[inside] - uv[r, c]).astype(np.float32)
+    flow[r, c, 0] = u_to[inside] - c
+    flow[r, c, 1] = v_to[inside] - r
     valid[r, c] = True
     return flow, valid
