@@ -68,13 +68,13 @@ class PoseEstimatorConfig:
     Distances ``|t|`` are from the camera centre to the object origin [m].
     """
 
-    lateral_sigma_per_m: float = 0.0068
+    lateral_sigma_per_m: float = 0.0069
     """Std of each error component across the viewing ray, per metre of distance [m/m]."""
-    ray_sigma_per_m: float = 0.0175
+    ray_sigma_per_m: float = 0.0177
     """Std of the error along the viewing ray, per metre of distance [m/m]."""
     ray_bias_per_m: float = 0.0039
     """Bias along the viewing ray per metre of distance [m/m] (> 0: estimates too far)."""
-    rotation_sigma_rad: float = 0.058
+    rotation_sigma_rad: float = 0.0585
     """Per-axis std of the core rotation error (left perturbation, camera frame) [rad]."""
     error_correlation: float = 0.7
     """AR(1) coefficient of the core errors between consecutive frames, in [0, 1). An
