@@ -97,28 +97,31 @@ def run_once(seq, obs, renderer, flow_fn=None):
     )
     tracker = RoftTracker(RoftConfig(), ctx)
     tracker.reset(None)
-    times, has_pose, render_s = [], [], []
+    times, cpu, has_pose, render_s = [], [], [], []
     for o in obs:
         before = renderer.seconds
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.thread_time()
         if flow_fn is not None:
             o = flow_fn(o)
         tracker.step(o)
         times.append(time.perf_counter() - t0)
+        cpu.append(time.thread_time() - c0)
         render_s.append(renderer.seconds - before)
         has_pose.append(bool(o.poses))
-    return np.array(times), np.array(has_pose), np.array(render_s)
+    return np.array(times), np.array(cpu), np.array(has_pose), np.array(render_s)
 
 
-def summarise(label, times, has_pose, render_s):
-    ms = 1e3 * times[1:]  # frame 0 builds caches
-    pose = has_pose[1:]
-    rend = 1e3 * render_s[1:]
+def summarise(label, times, cpu, has_pose, render_s):
+    ms = 1e3 * times
+    cpu_ms = 1e3 * cpu
+    pose = has_pose
+    rend = 1e3 * render_s
     print(
-        f"  {label:<28} median {np.median(ms):6.2f} ms  p90 {np.percentile(ms, 90):6.2f}  "
-        f"mean {ms.mean():6.2f} | no pose: median {np.median(ms[~pose]):6.2f} | "
-        f"pose frames: median {np.median(ms[pose]):6.2f} (renderer {np.median(rend[pose]):5.2f})"
-        f" | median without renderer {np.median(ms - rend):6.2f}"
+        f"  {label:<22} wall median {np.median(ms):6.2f} ms (CPU {np.median(cpu_ms):6.2f})  "
+        f"p90 {np.percentile(ms, 90):6.2f}  mean {ms.mean():6.2f} | no pose: median "
+        f"{np.median(ms[~pose]):6.2f} | pose frames: median {np.median(ms[pose]):6.2f} "
+        f"(renderer {np.median(rend[pose]):5.2f}) | median without renderer "
+        f"{np.median(ms - rend):6.2f}"
     )
 
 

@@ -44,29 +44,43 @@ _FLOW_INVALID_ABOVE_PX = 1e9
 
 @dataclass(frozen=True, slots=True)
 class PixelSet:
-    """The pixels of a mask: row-major linear indices ``v * W + u``, sorted ascending, unique."""
+    """The pixels of a mask in row-major order: linear indices ``v * W + u`` (sorted, unique)
+    with their columns and rows."""
 
     index: I64
-    """(N,) int64 linear pixel indices."""
+    """(N,) int64 linear pixel indices, ascending."""
+    u: I64
+    """(N,) int64 columns."""
+    v: I64
+    """(N,) int64 rows."""
     shape: tuple[int, int]
     """(H, W) of the image."""
 
     @classmethod
     def from_mask(cls, mask: NDArray[np.bool_]) -> PixelSet:
         """From an (H, W) bool mask."""
-        return cls(np.flatnonzero(mask).astype(np.int64), (mask.shape[0], mask.shape[1]))
+        index = np.flatnonzero(mask)  # much faster than the 2-D np.nonzero
+        v = index // mask.shape[1]
+        return cls(index, index - v * mask.shape[1], v, (mask.shape[0], mask.shape[1]))
+
+    @classmethod
+    def from_index(cls, index: NDArray[np.integer], shape: tuple[int, int]) -> PixelSet:
+        """From row-major linear indices (sorted and made unique here)."""
+        index = np.unique(np.asarray(index, dtype=np.int64))
+        v = index // shape[1]
+        return cls(index, index - v * shape[1], v, shape)
 
     @classmethod
     def empty(cls, shape: tuple[int, int]) -> PixelSet:
-        return cls(np.zeros(0, dtype=np.int64), shape)
+        z = np.zeros(0, dtype=np.int64)
+        return cls(z, z, z, shape)
 
     def __len__(self) -> int:
         return int(self.index.shape[0])
 
     def uv(self, stride: int = 1) -> tuple[I64, I64]:
         """Columns u and rows v ``(M,)`` of every ``stride``-th pixel in row-major order."""
-        idx = self.index[::stride]
-        return idx % self.shape[1], idx // self.shape[1]
+        return self.u[::stride], self.v[::stride]
 
     def to_mask(self) -> NDArray[np.bool_]:
         """The (H, W) bool mask."""
@@ -90,22 +104,18 @@ def lookup_flow(flow: FlowField, u: I64, v: I64) -> tuple[NDArray[np.complex64],
     outside the grid are invalid)."""
     g = flow.grid_px
     hg, wg = flow.flow_px.shape[:2]
-    if g == 1:
-        r, c = v, u
-    else:
-        r, c = v // g, u // g
+    r, c = (v, u) if g == 1 else (v // g, u // g)
     lin = r * wg + c
-    if hg * g < v.max(initial=-1) + 1 or wg * g < u.max(initial=-1) + 1:
+    inside = None
+    if u.size and (hg * g < v.max() + 1 or wg * g < u.max() + 1):
         inside = (r < hg) & (c < wg)
         lin = np.where(inside, lin, 0)
-    else:
-        inside = None
-    f = _complex_flow(flow)[lin]
+    f = np.take(_complex_flow(flow), lin)
     ok = np.abs(f) < _FLOW_INVALID_ABOVE_PX  # False for NaN and inf
     if inside is not None:
         ok &= inside
     if flow.valid is not None:
-        ok &= flow.valid.reshape(-1)[lin]
+        ok &= np.take(flow.valid.reshape(-1), lin)
     return f, ok
 
 
@@ -174,20 +184,20 @@ def _splat(u: I64, v: I64, shape: tuple[int, int], cleanup: str) -> PixelSet:
     r0, c0 = int(v.min()) - pad, int(u.min()) - pad
     rows = int(v.max()) - r0 + 1 + pad
     cols = int(u.max()) - c0 + 1 + pad
-    window = np.zeros(rows * cols, dtype=bool)
-    window[(v - r0) * cols + (u - c0)] = True
+    window = np.zeros((rows, cols), dtype=bool)
+    window.reshape(-1)[(v - r0) * cols + (u - c0)] = True
     if cleanup == "close":
-        window = _erode(_dilate(window.reshape(rows, cols)))
+        window = _erode(_dilate(window))
     elif cleanup == "majority":
-        window = _majority(window.reshape(rows, cols))
-    flat = np.flatnonzero(window)
+        window = _majority(window)
+    flat = np.flatnonzero(window)  # much faster than the 2-D np.nonzero
     rr = flat // cols
     cc = flat - rr * cols + c0
     rr += r0
     if cleanup != "none" and (r0 < 0 or c0 < 0 or r0 + rows > h or c0 + cols > w):
         keep = (rr >= 0) & (rr < h) & (cc >= 0) & (cc < w)
         rr, cc = rr[keep], cc[keep]
-    return PixelSet((rr * w + cc).astype(np.int64), shape)
+    return PixelSet(rr * w + cc, cc, rr, shape)
 
 
 def warp_pixels(
@@ -223,9 +233,19 @@ def warp_pixels(
     if not flows:
         return pixels
     shape = pixels.shape
-    w = shape[1]
-    v_i = pixels.index // w
-    u_i = pixels.index - v_i * w
+    u_i, v_i = pixels.u, pixels.v
+    if len(flows) == 1 and rounding == "nearest":
+        # integer positions moved once: round(u + du) = u + floor(du + 0.5)
+        f, ok = lookup_flow(flows[0], u_i, v_i)
+        if not ok.all():
+            u_i, v_i, f = u_i[ok], v_i[ok], f[ok]
+        u_i = u_i + np.floor(f.real + np.float64(0.5)).astype(np.int64)
+        v_i = v_i + np.floor(f.imag + np.float64(0.5)).astype(np.int64)
+        h, w = shape
+        inside = (u_i >= 0) & (u_i < w) & (v_i >= 0) & (v_i < h)
+        if not inside.all():
+            u_i, v_i = u_i[inside], v_i[inside]
+        return _splat(u_i, v_i, shape, cleanup)
     u: NDArray[np.float64] = u_i.astype(np.float64)
     v: NDArray[np.float64] = v_i.astype(np.float64)
     for flow in flows:

@@ -57,7 +57,7 @@ def depth_samples(
 ) -> DepthSamples:
     """Every ``pixel_stride``-th mask pixel (row-major) and the measured depth there."""
     index = pixels.index[:: config.pixel_stride]
-    return DepthSamples(index, depth_m.reshape(-1)[index], pixels.shape[1])
+    return DepthSamples(index, np.take(depth_m.reshape(-1), index), pixels.shape[1])
 
 
 def render_divider(intrinsics: CameraIntrinsics, config: OutlierRejectionConfig) -> int:

@@ -100,7 +100,7 @@ def flow_measurement(
         config: the filter settings.
     """
     index = pixels.index[:: config.subsampling_stride]
-    z = depth_m.reshape(-1)[index].astype(np.float64)
+    z = np.take(depth_m.reshape(-1), index).astype(np.float64)
     w = pixels.shape[1]
     v = index // w
     u = index - v * w
@@ -169,10 +169,11 @@ class VelocityKF:
             lik = laplacian_likelihood(innovation, self._config.reweighting_pairs)
         else:
             lik = np.ones(len(measurement))
-        W = lik[:, None] / self._R[None, :]  # (N, 2) inverse variances
-        JtW = J * W[:, :, None]  # (N, 2, 6)
-        info = np.linalg.inv(P_pred) + np.einsum("nki,nkj->ij", JtW, J)
-        rhs = np.einsum("nki,nk->i", JtW, innovation)
+        W = (lik[:, None] / self._R[None, :]).reshape(-1)  # (2N,) inverse variances
+        J2 = J.reshape(-1, 6)
+        JtW = J2.T * W  # (6, 2N)
+        info = np.linalg.inv(P_pred) + JtW @ J2
+        rhs = JtW @ innovation.reshape(-1)
         P_post = np.linalg.inv(info)
         P_post = 0.5 * (P_post + P_post.T)
         self.x = x_pred + P_post @ rhs
