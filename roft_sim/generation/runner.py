@@ -283,15 +283,15 @@ def _run_in_process(
     units: list[WorkUnit],
     jobs: Sequence[SequenceJob],
     options: GenerationOptions,
-    bar: Any,
+    report: Callable[[int], None],
     on_unit_done: Callable[[WorkUnit, int], None],
 ) -> None:
-    state = _WorkerState(jobs, options, bar.update)
+    state = _WorkerState(jobs, options, report)
     try:
         for unit in units:
             try:
                 n = run_work_unit(
-                    unit, jobs[unit.sequence], state.generator(unit.sequence), report=bar.update
+                    unit, jobs[unit.sequence], state.generator(unit.sequence), report=report
                 )
             except RoftSimError:
                 raise
@@ -306,7 +306,7 @@ def _run_in_pool(
     units: list[WorkUnit],
     jobs: Sequence[SequenceJob],
     options: GenerationOptions,
-    bar: Any,
+    report: Callable[[int], None],
     on_unit_done: Callable[[WorkUnit, int], None],
 ) -> None:
     ctx = multiprocessing.get_context(options.start_method)
@@ -317,7 +317,7 @@ def _run_in_pool(
     def drain() -> None:
         with contextlib.suppress(queue.Empty):
             while True:
-                bar.update(progress.get_nowait())
+                report(progress.get_nowait())
 
     executor = ProcessPoolExecutor(
         max_workers=min(options.workers, len(units)),
@@ -365,6 +365,7 @@ def generate_dataset(
     sequence_naming: Literal["scenario", "object"] = "scenario",
     preset: str | None = None,
     prepare_output: Callable[[Path], Any] | None = None,
+    on_frames: Callable[[int], None] | None = None,
 ) -> GenerationSummary:
     """Generates one sequence per scenario into ``out_dir`` (created if needed).
 
@@ -381,6 +382,8 @@ def generate_dataset(
         prepare_output: called with ``out_dir`` once every scenario is checked (objects
             loaded, trajectories long enough) and before anything is written, e.g. to empty the
             folder for ``--overwrite``.
+        on_frames: called in this process with the number of frames just written (as they
+            are reported; e.g. for timing).
 
     Returns:
         A :class:`GenerationSummary`.
@@ -434,10 +437,16 @@ def generate_dataset(
     workers = 1 if options.workers == 1 or len(units) <= 1 else options.workers
     if units:
         with _progress_bar(total, options.progress) as bar:
+
+            def report(n: int) -> None:
+                bar.update(n)
+                if on_frames is not None:
+                    on_frames(n)
+
             if workers == 1:
-                _run_in_process(units, jobs, options, bar, on_unit_done)
+                _run_in_process(units, jobs, options, report, on_unit_done)
             else:
-                _run_in_pool(units, jobs, options, bar, on_unit_done)
+                _run_in_pool(units, jobs, options, report, on_unit_done)
     return GenerationSummary(
         sequences=tuple(
             SequenceResult(
