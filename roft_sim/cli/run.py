@@ -1,0 +1,227 @@
+"""``roft-sim run``: one tracker over datasets under faults; writes estimates and metrics.
+
+    roft-sim run DATASET... --tracker NAME [--faults PRESET|FILE] [--flow SPEC] [--out DIR]
+
+Everything is described in docs/running.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+from pathlib import Path
+from typing import Any
+
+from roft_sim.cli.output_dirs import prepare_output_dir
+from roft_sim.errors import ConfigError, PluginError
+
+__all__ = [
+    "register",
+    "resolve_tracker",
+    "build_run_options",
+    "add_input_arguments",
+    "command_record",
+    "print_metrics_table",
+]
+
+ORDER = 20
+
+
+def add_input_arguments(parser: argparse.ArgumentParser, *, sweep: bool = False) -> None:
+    """The options shared by ``run`` and ``sweep``: faults, inputs, initial condition, seed
+    (``sweep``: faults and seeds are comma-separated lists and have no default here)."""
+    if not sweep:
+        parser.add_argument(
+            "--faults",
+            default="paper",
+            metavar="PRESET|FILE",
+            help="fault preset (roft-sim faults list) or fault TOML file, 'a+b' composes "
+            "(default: paper = 5 fps networks, 6 frames late)",
+        )
+    parser.add_argument(
+        "--flow",
+        default="auto",
+        metavar="SPEC",
+        help="flow source: gt, gt+noise, dis[:preset], nvof-like:<inner>, stored:<set>, none, "
+        "or auto (default: the stored nvof_1_slow set, else another stored set, else dis)",
+    )
+    parser.add_argument(
+        "--poses",
+        default="auto",
+        metavar="SET",
+        help="detector pose set: a set of the dataset, gt (ground-truth poses as detections), "
+        "none, or auto (default: dope, else the first non-gt set)",
+    )
+    parser.add_argument(
+        "--masks",
+        default="auto",
+        metavar="SET",
+        help="mask set: a set of the dataset, gt (ground-truth masks), none, or auto "
+        "(default: the first detector set)",
+    )
+    parser.add_argument(
+        "--init",
+        default="first-detection",
+        choices=("first-detection", "gt"),
+        help="initial condition: the first pose that arrives (default, as the reference) or the "
+        "ground truth of frame 0",
+    )
+    if not sweep:
+        parser.add_argument("--seed", type=int, default=0, help="run seed (default 0)")
+    parser.add_argument(
+        "--invalid",
+        default="failure",
+        choices=("failure", "exclude", "as_given"),
+        help="how frames without a tracker pose are scored (default failure: ADD = inf, left "
+        "out of the RMSEs; exclude: dropped, as the reference does for detector misses)",
+    )
+    parser.add_argument(
+        "--no-rgb",
+        action="store_true",
+        help="do not hand rgb images to the tracker (faster for trackers that ignore them)",
+    )
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Adds the ``run`` verb."""
+    parser = subparsers.add_parser(
+        "run",
+        help="run a tracker over datasets under faults; write estimates and metrics",
+        description="Run one tracker over every sequence of the given datasets (ours in any "
+        "format, or the real Fast-YCB) under a fault configuration. Writes one folder per "
+        "sequence (pose_estimate.txt, velocity_estimate.txt in the reference's formats, "
+        "estimates.npz, metrics.json), metrics.json (ALL, MEAN, per sequence) and run.json, and "
+        "prints a table. See docs/running.md.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n"
+        "  roft-sim run data/fast_ycb --tracker roft --out runs/roft\n"
+        "  roft-sim run data/fast_ycb/003_cracker_box --tracker detector-hold --faults paper\n"
+        "  roft-sim run data/ci --tracker roft --faults bursts --flow dis --seed 3 --json\n"
+        "\nexit codes: 0 done, 1 runtime error, 2 bad arguments, dataset or output",
+    )
+    parser.add_argument(
+        "datasets",
+        nargs="+",
+        type=Path,
+        metavar="DATASET",
+        help="sequence folders/.h5 files or dataset roots holding several sequences",
+    )
+    parser.add_argument("--tracker", required=True, help="tracker name (roft-sim trackers)")
+    parser.add_argument(
+        "--tracker-config", type=Path, metavar="FILE", help="TOML file of tracker settings"
+    )
+    add_input_arguments(parser)
+    parser.add_argument(
+        "--out",
+        type=Path,
+        help="output folder (default: runs/<tracker>-<faults>); must be empty or absent",
+    )
+    parser.add_argument("--overwrite", action="store_true", help="empty a non-empty --out first")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
+    parser.set_defaults(func=_run)
+
+
+def resolve_tracker(name: str, config_path: Path | None) -> tuple[Any, Any]:
+    """``(spec, config)`` of tracker ``name``; unknown names are usage errors (exit 2)."""
+    from roft_sim.trackers import get_tracker_spec, load_tracker_config
+
+    try:
+        spec = get_tracker_spec(name)
+    except PluginError as e:
+        raise ConfigError(str(e)) from None
+    if config_path is not None and not config_path.is_file():
+        raise ConfigError(f"--tracker-config {str(config_path)!r} does not exist")
+    return spec, load_tracker_config(spec, config_path)
+
+
+def build_run_options(args: argparse.Namespace, tracker: str, config: Any) -> Any:
+    """:class:`~roft_sim.harness.RunOptions` from the shared arguments."""
+    from roft_sim.faults import load_faults
+    from roft_sim.harness import RunOptions
+
+    return RunOptions(
+        tracker=tracker,
+        tracker_config=config,
+        faults=load_faults(args.faults),
+        flow=args.flow,
+        poses=args.poses,
+        masks=args.masks,
+        init=args.init,
+        seed=args.seed,
+        include_rgb=not args.no_rgb,
+        invalid=args.invalid,
+    )
+
+
+def _check_inputs(sources: list[Any], options: Any) -> None:
+    """Validates every sequence's inputs before anything is written."""
+    from roft_sim.harness import resolve_inputs
+    from roft_sim.sensors.flow_sources import make_flow_source
+
+    for source in sources:
+        inputs = resolve_inputs(source.sequence, options)
+        if inputs.flow is not None:
+            make_flow_source(inputs.flow, seed=0)
+        options.faults.check_camera_rate(int(source.sequence.fps))
+
+
+def command_record(args: argparse.Namespace) -> list[str]:
+    """The parsed command line as ``["run", "--key=value", ...]`` for ``run.json``."""
+    out = [str(args.verb)]
+    for key, value in sorted(vars(args).items()):
+        if key in ("func", "verb") or value is None or value is False:
+            continue
+        out.append(f"--{key}={value}" if value is not True else f"--{key}")
+    return out
+
+
+def print_metrics_table(metrics: dict[str, dict[str, Any]], first_header: str) -> None:
+    """Prints the per-sequence + ALL + MEAN table of a ``metrics.json`` on stdout."""
+    from roft_sim.report.tables import METRIC_COLUMNS, Column, text_table
+
+    order = [n for n in metrics if n not in ("ALL", "MEAN")] + [
+        n for n in ("ALL", "MEAN") if n in metrics
+    ]
+    rows = [{"name": n, **metrics[n]} for n in order]
+    print(text_table([Column("name", first_header, align="left"), *METRIC_COLUMNS], rows), end="")
+
+
+def _run(args: argparse.Namespace) -> int:
+    from roft_sim.errors import DatasetFormatError
+    from roft_sim.harness import open_sequences, run_sequences
+
+    spec, config = resolve_tracker(args.tracker, args.tracker_config)
+    options = build_run_options(args, spec.name, config)
+    try:
+        sources = open_sequences(args.datasets)
+    except DatasetFormatError as e:
+        raise ConfigError(str(e)) from None
+    _check_inputs(sources, options)
+    out = args.out or Path("runs") / f"{spec.name}-{options.faults.name}".replace("/", "_")
+    if out.is_dir() and any(out.iterdir()) and not args.overwrite:
+        raise ConfigError(
+            f"output directory {str(out)!r} is not empty; pass --overwrite to replace it or "
+            "choose another --out"
+        )
+    out = prepare_output_dir(out, overwrite=args.overwrite)
+    if spec.needs_depth_renderer:
+        from roft_sim.render.gl_backend import select_gl_backend
+
+        select_gl_backend(os.environ)  # before MuJoCo is imported (lazily, on the first render)
+    result = run_sequences(
+        sources,
+        options,
+        out,
+        spec=spec,
+        progress=not (args.no_progress or args.quiet or args.json),
+        command=command_record(args),
+    )
+    if args.json:
+        print(json.dumps({"out": str(out), "metrics": result.metrics}, indent=2))
+    else:
+        print_metrics_table(result.metrics, "sequence")
+        print(f"results in {out}", file=sys.stderr)
+    return 0

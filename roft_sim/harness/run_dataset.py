@@ -1,0 +1,233 @@
+"""``roft-sim run`` as a library call: one tracker over the sequences of one or more datasets.
+
+:func:`run_sequences` runs every sequence, writes one folder per sequence
+(:mod:`roft_sim.harness.outputs`), ``metrics.json`` (``ALL``, ``MEAN`` and one entry per
+sequence) and ``run.json`` (resolved configuration, seeds, inputs, package versions), and returns
+a :class:`RunResult`. :func:`find_sequences` expands dataset roots into sequence paths.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from roft_sim.config_files import jsonable
+from roft_sim.datasets import detect_format, list_sequences, open_sequence
+from roft_sim.datasets.base import Sequence as DatasetSequence
+from roft_sim.datasets.metadata import package_versions
+from roft_sim.errors import ConfigError, DatasetFormatError
+from roft_sim.harness.evaluation import SequenceEvaluation, evaluate_run
+from roft_sim.harness.inputs import DepthRendererFactory, resolve_object_model
+from roft_sim.harness.options import RunOptions
+from roft_sim.harness.outputs import write_json, write_sequence_outputs
+from roft_sim.harness.runner import SequenceRun, run_sequence
+from roft_sim.metrics import POOLED_ALL, POOLED_MEAN, SequenceMetrics, pool_metrics
+from roft_sim.trackers import TrackerSpec, get_tracker_spec, load_tracker_config
+
+__all__ = [
+    "RunResult",
+    "SequenceSource",
+    "find_sequences",
+    "open_sequences",
+    "run_sequences",
+    "RUN_FILE",
+    "METRICS_FILE",
+    "tracker_description",
+]
+
+RUN_FILE = "run.json"
+METRICS_FILE = "metrics.json"
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class SequenceSource:
+    """A sequence to run and where it came from."""
+
+    sequence: DatasetSequence
+    """The (lazy) sequence."""
+    path: Path | None = None
+    """Its folder or file on disk; None for in-memory sequences."""
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class RunResult:
+    """What :func:`run_sequences` did."""
+
+    out_dir: Path
+    """The output folder."""
+    metrics: dict[str, dict[str, Any]]
+    """The content of ``metrics.json``."""
+    pooled: dict[str, SequenceMetrics]
+    """``ALL``, ``MEAN`` and per-sequence metrics (sequences with ground truth only)."""
+    runs: tuple[SequenceRun, ...]
+    """The per-sequence runs (estimates, step times, ledgers)."""
+    wall_s: float
+    """Wall time [s]."""
+
+    @property
+    def sequence_names(self) -> list[str]:
+        return [r.sequence_name for r in self.runs]
+
+
+def find_sequences(paths: Sequence[str | Path]) -> list[Path]:
+    """Sequence paths under ``paths``: each is a sequence (folder or ``.h5``) or a dataset root.
+
+    Raises:
+        DatasetFormatError: a path does not exist or holds no sequence.
+    """
+    found: list[Path] = []
+    for p in map(Path, paths):
+        if not p.exists():
+            raise DatasetFormatError(
+                f"dataset path {str(p)!r} does not exist; give a sequence folder, an .h5 file or "
+                "a dataset root (e.g. the folder `roft-sim generate --out` wrote)"
+            )
+        sequences = list_sequences(p)
+        if not sequences:
+            raise DatasetFormatError(
+                f"no sequence found under {str(p)!r}: expected Fast-YCB folders (cam_K.json + "
+                "data.txt), BOP scenes or .h5 files, up to 3 levels deep"
+            )
+        found.extend(sequences)
+    return found
+
+
+def open_sequences(paths: Sequence[str | Path]) -> list[SequenceSource]:
+    """Opens every sequence under ``paths`` (see :func:`find_sequences`)."""
+    out = []
+    for path in find_sequences(paths):
+        detect_format(path)
+        out.append(SequenceSource(sequence=open_sequence(path), path=path))
+    return out
+
+
+def _check_names(sources: Sequence[SequenceSource]) -> None:
+    names = [s.sequence.name for s in sources]
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        where = {n: [str(s.path) for s in sources if s.sequence.name == n] for n in dup}
+        raise ConfigError(
+            f"sequence names must be unique within a run; {dup} appear more than once "
+            f"({where}); run those datasets separately"
+        )
+    reserved = {POOLED_ALL, POOLED_MEAN} & set(names)
+    if reserved:
+        raise ConfigError(f"sequence names {sorted(reserved)} are reserved for pooled metrics")
+
+
+def tracker_description(spec: TrackerSpec) -> dict[str, Any]:
+    """JSON-ready summary of a tracker spec."""
+    return {
+        "name": spec.name,
+        "description": spec.description,
+        "detection_mode": spec.detection_mode,
+        "needs_depth_renderer": spec.needs_depth_renderer,
+        "config_type": f"{spec.config_type.__module__}.{spec.config_type.__qualname__}",
+    }
+
+
+def run_sequences(
+    sources: Sequence[SequenceSource],
+    options: RunOptions,
+    out_dir: str | Path,
+    *,
+    spec: TrackerSpec | None = None,
+    depth_renderer_factory: DepthRendererFactory | None = None,
+    progress: bool = False,
+    on_sequence_done: Callable[[SequenceRun, SequenceEvaluation], None] | None = None,
+    command: Sequence[str] | None = None,
+) -> RunResult:
+    """Runs ``options.tracker`` over every sequence and writes the results into ``out_dir``.
+
+    Args:
+        sources: the sequences (e.g. from :func:`open_sequences`).
+        options: the run's configuration (``tracker_config`` None = the tracker's defaults).
+        out_dir: output folder (created; emptiness is the caller's business).
+        spec: the tracker spec (default: looked up by name).
+        depth_renderer_factory: see :func:`~roft_sim.harness.runner.run_sequence`.
+        progress: show a tqdm progress bar over frames on stderr.
+        on_sequence_done: called after each sequence is written.
+        command: the command line, recorded in ``run.json``.
+
+    Returns:
+        The :class:`RunResult`.
+    """
+    t0 = time.perf_counter()
+    if not sources:
+        raise ConfigError("no sequence to run")
+    _check_names(sources)
+    spec = spec if spec is not None else get_tracker_spec(options.tracker)
+    if options.tracker_config is None:
+        options = options.replace(tracker_config=load_tracker_config(spec, None))
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+
+    from tqdm import tqdm
+
+    total = sum(len(s.sequence) for s in sources)
+    runs: list[SequenceRun] = []
+    evaluations: dict[str, SequenceEvaluation] = {}
+    described = []
+    with tqdm(
+        total=total, unit="frame", desc=f"run {spec.name}", disable=not progress, leave=False
+    ) as bar:
+        for source in sources:
+            seq = source.sequence
+            bar.set_postfix_str(seq.name)
+            model = resolve_object_model(seq)
+            run = run_sequence(
+                seq,
+                options,
+                spec=spec,
+                object_model=model,
+                depth_renderer_factory=depth_renderer_factory,
+                progress=bar.update,
+            )
+            evaluation = evaluate_run(run, invalid=options.invalid)
+            write_sequence_outputs(out / seq.name, run, evaluation)
+            runs.append(run)
+            evaluations[seq.name] = evaluation
+            described.append(
+                {
+                    "name": seq.name,
+                    "path": None if source.path is None else str(source.path),
+                    "format": None if source.path is None else detect_format(source.path),
+                    "object": seq.object_name,
+                    "frames": len(seq),
+                    "fps": int(seq.fps),
+                    "resolution": [seq.intrinsics.width_px, seq.intrinsics.height_px],
+                    "inputs": run.inputs,
+                    "seeds": run.seeds.describe(),
+                    "depth_renderer_built": run.depth_renderer_built,
+                    "wall_s": round(run.wall_s, 3),
+                }
+            )
+            if on_sequence_done is not None:
+                on_sequence_done(run, evaluation)
+
+    scored = {n: e.metrics for n, e in evaluations.items() if e.metrics is not None}
+    pooled: dict[str, SequenceMetrics] = pool_metrics(scored) if scored else {}
+    metrics: dict[str, dict[str, Any]] = {}
+    for name in (POOLED_ALL, POOLED_MEAN):
+        if name in pooled:
+            metrics[name] = pooled[name].summary()
+    for name, evaluation in evaluations.items():
+        metrics[name] = evaluation.entry()
+    write_json(out / METRICS_FILE, metrics)
+    wall_s = time.perf_counter() - t0
+    write_json(
+        out / RUN_FILE,
+        {
+            "kind": "run",
+            "command": list(command) if command is not None else None,
+            "tracker": tracker_description(spec),
+            "options": jsonable(options),
+            "sequences": described,
+            "versions": package_versions("mujoco", "scipy"),
+            "wall_s": round(wall_s, 3),
+        },
+    )
+    return RunResult(out_dir=out, metrics=metrics, pooled=pooled, runs=tuple(runs), wall_s=wall_s)

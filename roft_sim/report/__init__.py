@@ -1,0 +1,1 @@
+"""Reports: tables (text, Markdown, CSV, LaTeX), plots drawn with OpenCV, overlay videos."""
