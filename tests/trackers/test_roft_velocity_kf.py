@@ -115,16 +115,18 @@ def _random_measurement(rng, n):
     return FlowMeasurement(y_px=y, J=J, u_px=u, v_px=v)
 
 
-@pytest.mark.parametrize("weight_flow", [True, False])
-def test_batched_update_equals_the_references_sequential_per_pixel_update(weight_flow):
+@pytest.mark.parametrize(
+    "weight_flow, pairs", [(True, "correct"), (True, "reference"), (False, "correct")]
+)
+def test_batched_update_equals_the_references_sequential_per_pixel_update(weight_flow, pairs):
     rng = np.random.default_rng(7)
-    cfg = VelocityKFConfig(weight_flow=weight_flow, cov_flow=(1.0, 2.0))
+    cfg = VelocityKFConfig(weight_flow=weight_flow, cov_flow=(1.0, 2.0), reweighting_pairs=pairs)
     kf = VelocityKF(cfg)
     kf.x = rng.normal(size=6)
     for _ in range(3):
         m = _random_measurement(rng, 40)
         x, P = kf.x.copy(), kf.P + np.diag(cfg.sigma_linear + cfg.sigma_angular)
-        lik = laplacian_likelihood(m.y_px - m.J @ x) if weight_flow else np.ones(len(m))
+        lik = laplacian_likelihood(m.y_px - m.J @ x, pairs) if weight_flow else np.ones(len(m))
         for j in range(len(m)):  # the reference: one 2x2 block per pixel, in list order
             Hj = m.J[j]
             R = np.diag(cfg.cov_flow) / lik[j]

@@ -165,11 +165,17 @@ class RoftTracker:
         self._previous = _PreviousFrame(obs.k, obs.t_s, pixels, obs.depth_m)
         return self._velocity_kf.x.copy(), used
 
-    def _file_poses(self, k: int, poses: tuple[PoseDetection, ...]) -> tuple[list[_Pose], Counter]:
-        """Validates and files arriving poses under their (effective) capture frame."""
+    def _file_poses(
+        self, k: int, poses: tuple[PoseDetection, ...]
+    ) -> tuple[list[_Pose], Counter[str], list[int]]:
+        """Validates and files arriving poses under their (effective) capture frame.
+
+        Returns:
+            The poses filed, the count of dropped ones per reason, and the dropped ids.
+        """
         dropped: Counter[str] = Counter()
+        dropped_ids: list[int] = []
         new: list[_Pose] = []
-        self._dropped_ids: list[int] = []
         start = self._first_k
         for det in poses:
             c = det.capture_k if self._config.use_pose_resync else k
@@ -187,7 +193,7 @@ class RoftTracker:
                 reason = "duplicate"
             if reason is not None:
                 dropped[reason] += 1
-                self._dropped_ids.append(det.detection_id)
+                dropped_ids.append(det.detection_id)
                 continue
             q = quat_from_matrix(T[:3, :3])
             pose = _Pose(det.detection_id, c, T[:3, 3].copy(), q)
@@ -196,8 +202,8 @@ class RoftTracker:
             new.append(pose)
             if not self._config.use_pose:  # kept only to initialise the filter
                 dropped["not_fused"] += 1
-                self._dropped_ids.append(det.detection_id)
-        return new, dropped
+                dropped_ids.append(det.detection_id)
+        return new, dropped, dropped_ids
 
     # ------------------------------------------------------------------ the filter
     def _earliest_pose(self) -> _Pose | None:
@@ -314,7 +320,7 @@ class RoftTracker:
             samples = depth_samples(pixels, obs.depth_m, cfg.outlier_rejection)
         self._frames[k] = _Frame(dt_s=float(dt), twist=twist, samples=samples)
 
-        new, dropped = self._file_poses(k, obs.poses)
+        new, dropped, dropped_ids = self._file_poses(k, obs.poses)
         replay = 0
         start = self._replay_start(k, new)
         estimate_belief: PoseBelief | None = None
@@ -347,7 +353,7 @@ class RoftTracker:
             return Estimate.invalid(
                 k,
                 spatial_twist=spatial_twist,
-                dropped_pose_ids=tuple(self._dropped_ids),
+                dropped_pose_ids=tuple(dropped_ids),
                 diagnostics=diagnostics,
             )
         b = estimate_belief
@@ -365,7 +371,7 @@ class RoftTracker:
             spatial_twist=spatial_twist,
             accepted_pose_ids=accepted,
             rejected_pose_ids=rejected,
-            dropped_pose_ids=tuple(self._dropped_ids),
+            dropped_pose_ids=tuple(dropped_ids),
             diagnostics=diagnostics,
         )
 
