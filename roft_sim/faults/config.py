@@ -52,6 +52,7 @@ from roft_sim.faults.timing import (
     Rate,
     UniformDelay,
 )
+from roft_sim.shipped_files import scenarios_dir
 
 __all__ = [
     "PoseFault",
@@ -312,7 +313,7 @@ def compose_faults(*configs: FaultConfig, name: str | None = None) -> FaultConfi
 
 def fault_presets_dir() -> Path:
     """The folder of the preset files, ``scenarios/faults/`` in the repository."""
-    return Path(__file__).resolve().parents[2] / "scenarios" / "faults"
+    return scenarios_dir() / "faults"
 
 
 def fault_config_from_mapping(

@@ -18,6 +18,7 @@ from roft_sim.faults import (
     load_faults,
     schedule_detections,
 )
+from roft_sim.shipped_files import scenarios_dir
 
 EXPECTED_PRESETS = {
     "none",
@@ -147,4 +148,7 @@ def test_unknown_preset_and_missing_file():
 
 
 def test_presets_live_in_scenarios_faults():
-    assert fault_presets_dir() == Path(__file__).resolve().parents[2] / "scenarios" / "faults"
+    # package data in roft_sim/scenarios/faults, also reachable as scenarios/faults in a checkout
+    assert fault_presets_dir() == scenarios_dir() / "faults"
+    repo_view = Path(__file__).resolve().parents[2] / "scenarios" / "faults"
+    assert repo_view.resolve() == fault_presets_dir()
