@@ -1,0 +1,477 @@
+"""``roft-sim report``: a self-contained report of a results folder.
+
+For a ``roft-sim run`` folder: ``report.md`` (configuration, metrics, synchronisation figures),
+per sequence a PNG of the per-frame errors with pose arrivals marked, the ADD accuracy curve,
+and an overlay video (the object's silhouette at the estimate and at the ground truth over the
+rgb, the delayed masks the tracker received, markers when a pose arrives) with a few stills.
+The masks and arriving poses are rebuilt exactly from the run's recorded options and seeds
+(the fault schedule does not depend on the tracker or the flow), so the video shows what the
+tracker was given.
+
+For a ``roft-sim sweep`` folder: the summary tables and plots, rebuilt from the cells.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from roft_sim.datasets import open_sequence
+from roft_sim.datasets.atomic_files import atomic_write_text
+from roft_sim.errors import ConfigError, DatasetFormatError, RoftSimError
+from roft_sim.faults import fault_config_from_mapping
+from roft_sim.harness.cells import CELLS_DIR, SweepCell, finished_cells
+from roft_sim.harness.inputs import resolve_object_model
+from roft_sim.harness.options import RunOptions
+from roft_sim.harness.outputs import (
+    DELIVERIES_FILE,
+    ESTIMATES_FILE,
+    FRAME_ERRORS_FILE,
+    load_deliveries,
+    load_estimates,
+    load_frame_errors,
+    read_json,
+)
+from roft_sim.harness.run_dataset import METRICS_FILE, RUN_FILE
+from roft_sim.harness.runner import make_observation_stream
+from roft_sim.metrics import SequenceMetrics, accuracy_curve
+from roft_sim.report.overlay import OverlayFrame, VideoWriter, draw_overlay, silhouette_mask
+from roft_sim.report.plotting import LinePlot, save_png, stack_images
+from roft_sim.report.tables import METRIC_COLUMNS, Column, markdown_table
+
+__all__ = ["ReportOptions", "ReportResult", "build_report", "options_from_record"]
+
+_log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class ReportOptions:
+    """What the report includes."""
+
+    video: bool = True
+    """Write the overlay videos (and stills)."""
+    max_video_frames: int | None = None
+    """Frames per video (from frame 0); None = all."""
+    video_scale: float | None = None
+    """Scale of the video frames; None = 1 up to 960 px wide, else 0.5."""
+    sequences: tuple[str, ...] | None = None
+    """Only these sequences; None = all."""
+    panel_px: tuple[int, int] = (560, 300)
+    """Size of one plot panel [px]."""
+
+    def __post_init__(self) -> None:
+        if self.max_video_frames is not None and self.max_video_frames < 1:
+            raise ConfigError(f"max_video_frames must be >= 1, got {self.max_video_frames}")
+        if self.video_scale is not None and not 0 < self.video_scale <= 4:
+            raise ConfigError(f"video_scale must be in (0, 4], got {self.video_scale}")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class ReportResult:
+    """What :func:`build_report` wrote."""
+
+    out_dir: Path
+    """The report folder."""
+    markdown: Path
+    """``report.md``."""
+    files: tuple[Path, ...]
+    """Every other file written (plots, videos, stills)."""
+    notes: tuple[str, ...]
+    """What could not be included and why (also in the report)."""
+
+
+def options_from_record(record: dict[str, Any]) -> RunOptions:
+    """The :class:`RunOptions` of a ``run.json`` / ``cell.json`` ``options`` record (the tracker
+    settings are left at None: a report does not re-run the tracker)."""
+    return RunOptions(
+        tracker=record["tracker"],
+        faults=fault_config_from_mapping(dict(record["faults"])),
+        flow=record["flow"],
+        poses=record["poses"],
+        masks=record["masks"],
+        init=record["init"],
+        seed=int(record["seed"]),
+        include_rgb=False,
+        invalid=record["invalid"],
+    )
+
+
+def _rel(path: Path, base: Path) -> str:
+    return path.relative_to(base).as_posix()
+
+
+# ------------------------------------------------------------------------------------ plots
+def _error_plot(
+    m: SequenceMetrics, arrivals: np.ndarray, path: Path, title: str, panel_px: tuple[int, int]
+) -> Path:
+    w, h = panel_px
+    panels = []
+    specs = (
+        ("position error", "cm", m.t_err_norm_cm),
+        ("rotation error", "deg", m.a_err_deg),
+        ("linear velocity error", "cm/s", np.linalg.norm(m.v_err_cmps, axis=1)),
+        ("angular velocity error", "deg/s", np.linalg.norm(m.w_err_dps, axis=1)),
+    )
+    for name, unit, values in specs:
+        plot = LinePlot(
+            width_px=w,
+            height_px=h,
+            title=f"{title}: {name}",
+            x_label="frame",
+            y_label=f"{name} [{unit}]",
+            x_integer=True,
+        )
+        if arrivals.size:
+            plot.add_events(arrivals, label="pose arrives", color=(200, 200, 200))
+        plot.add_line(m.frame_index, values, label="error", width_px=1)
+        panels.append(plot.render())
+    image = stack_images(
+        [
+            stack_images(panels[:2], direction="horizontal"),
+            stack_images(panels[2:], direction="horizontal"),
+        ]
+    )
+    return save_png(path, image)
+
+
+def _accuracy_plot(m: SequenceMetrics, path: Path, title: str, panel_px: tuple[int, int]) -> Path:
+    thresholds_m = np.linspace(0.0, 0.1, 201)
+    acc = accuracy_curve(m.add_m, thresholds_m)
+    plot = LinePlot(
+        width_px=panel_px[0],
+        height_px=panel_px[1],
+        title=f"{title}: ADD accuracy (AUC {m.add_auc_pct:.2f} %)",
+        x_label="ADD threshold [cm]",
+        y_label="frames within [%]",
+        x_range=(0.0, 10.0),
+        y_range=(0.0, 100.0),
+    )
+    plot.add_line(100 * thresholds_m, 100 * np.asarray(acc), label="accuracy")
+    return plot.save(path)
+
+
+# ------------------------------------------------------------------------------------ video
+def _video_scale(width: int, options: ReportOptions) -> float:
+    if options.video_scale is not None:
+        return options.video_scale
+    return 1.0 if width <= 960 else 0.5
+
+
+def _write_video(
+    seq_record: dict[str, Any],
+    run_record: dict[str, Any],
+    folder: Path,
+    out_dir: Path,
+    options: ReportOptions,
+    still_frames: Sequence[int],
+) -> tuple[list[Path], str | None]:
+    """Writes the overlay video and stills of one sequence; returns the files and a note."""
+    name = seq_record["name"]
+    path = seq_record.get("path")
+    if not path or not Path(path).exists():
+        return [], f"{name}: no overlay video, the dataset {path!r} is not available"
+    sequence = open_sequence(path)
+    gt = sequence.ground_truth()
+    model = resolve_object_model(sequence)
+    run_options = options_from_record(run_record["options"])
+    stream, _, _ = make_observation_stream(
+        sequence,
+        run_options,
+        detection_mode=run_record["tracker"]["detection_mode"],
+        with_flow=False,
+    )
+    estimates = load_estimates(folder / ESTIMATES_FILE)
+    errors = (
+        load_frame_errors(folder / FRAME_ERRORS_FILE)
+        if (folder / FRAME_ERRORS_FILE).is_file()
+        else None
+    )
+    err_t = np.full(len(sequence), np.nan)
+    err_a = np.full(len(sequence), np.nan)
+    if errors is not None:
+        err_t[errors.frame_index] = errors.t_err_norm_cm
+        err_a[errors.frame_index] = errors.a_err_deg
+    intr = sequence.intrinsics
+    scale = _video_scale(intr.width_px, options)
+    n = (
+        len(sequence)
+        if options.max_video_frames is None
+        else min(len(sequence), options.max_video_frames)
+    )
+    video_path = out_dir / "videos" / f"{name}_overlay.mp4"
+    files: list[Path] = []
+    mask: np.ndarray | None = None
+    mask_text = "no mask yet"
+    banner_until, banner = -1, None
+    wanted = {k for k in still_frames if 0 <= k < n}
+    with VideoWriter(video_path, fps=float(sequence.fps)) as video:
+        for k in range(n):
+            obs = stream.observation(k)
+            if obs.masks:
+                newest = max(obs.masks, key=lambda d: d.capture_k)
+                mask = np.asarray(newest.mask)
+                mask_text = f"mask of frame {newest.capture_k} (arrived {k})"
+            arrived = None
+            if obs.poses:
+                det = max(obs.poses, key=lambda d: d.capture_k)
+                arrived = silhouette_mask(model, det.T_cam_obj, intr)
+                banner = f"pose of frame {det.capture_k} arrives (+{k - det.capture_k})"
+                banner_until = k + 3
+            e = estimates[k]
+            frame = OverlayFrame(
+                rgb=np.asarray(sequence.rgb(k)),
+                gt_mask=None if gt is None else silhouette_mask(model, gt.T_cam_obj[k], intr),
+                estimate_mask=silhouette_mask(model, e.T_cam_obj, intr) if e.valid else None,
+                delayed_mask=mask,
+                arrived_pose_mask=arrived,
+                banner=banner if k <= banner_until else None,
+                lines=(
+                    f"{name}  frame {k}  {run_record['tracker']['name']}",
+                    f"e_t {err_t[k]:.1f} cm  e_a {err_a[k]:.1f} deg" if gt is not None else "",
+                    mask_text,
+                ),
+            )
+            image = draw_overlay(frame)
+            if scale != 1.0:
+                import cv2
+
+                image = cv2.resize(
+                    image,
+                    (int(round(image.shape[1] * scale)), int(round(image.shape[0] * scale))),
+                    interpolation=cv2.INTER_AREA,
+                )
+            video.write(image)
+            if k in wanted:
+                files.append(save_png(out_dir / "stills" / f"{name}_k{k:04d}.png", image))
+    files.insert(0, video_path)
+    return files, None
+
+
+def _still_frames(m: SequenceMetrics | None, arrivals: np.ndarray, n: int) -> list[int]:
+    frames = []
+    later = arrivals[arrivals > 0]
+    if later.size:
+        frames.append(int(later[0]))
+    if m is not None and np.isfinite(m.t_err_norm_cm).any():
+        frames.append(int(m.frame_index[int(np.nanargmax(m.t_err_norm_cm))]))
+    frames.append(n - 1)
+    return sorted(set(frames))
+
+
+# ------------------------------------------------------------------------------------ tables
+def _metrics_rows(metrics: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
+    names = [n for n in metrics if n not in ("ALL", "MEAN")] + [
+        n for n in ("ALL", "MEAN") if n in metrics
+    ]
+    return [{"name": n, **metrics[n]} for n in names]
+
+
+_SYNC_COLUMNS = (
+    Column("name", "sequence", align="left"),
+    Column("arrivals", "pose arrivals", "d"),
+    Column("t_before", "e_t before [cm]", ".2f"),
+    Column("t_after", "e_t after [cm]", ".2f"),
+    Column("a_before", "e_a before [deg]", ".2f"),
+    Column("a_after", "e_a after [deg]", ".2f"),
+    Column("rejected", "poses rejected", "d"),
+    Column("catch_rate", "outliers caught", ".2f"),
+    Column("recovery", "recovery [frames]", ".1f"),
+    Column("nees", "NEES mean (12 dof)", ".1f"),
+)
+
+
+def _sync_rows(metrics: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
+    rows = []
+    for name, entry in metrics.items():
+        if name in ("ALL", "MEAN"):
+            continue
+        sync = entry.get("sync", {})
+        outliers = entry.get("outliers", {})
+        rows.append(
+            {
+                "name": name,
+                "arrivals": sync.get("arrivals"),
+                "t_before": sync.get("t_err_cm", {}).get("before"),
+                "t_after": sync.get("t_err_cm", {}).get("after"),
+                "a_before": sync.get("a_err_deg", {}).get("before"),
+                "a_after": sync.get("a_err_deg", {}).get("after"),
+                "rejected": outliers.get("poses_rejected"),
+                "catch_rate": outliers.get("catch_rate"),
+                "recovery": entry.get("recovery", {}).get("recovery_frames_mean"),
+                "nees": entry.get("consistency", {}).get("nees_mean"),
+            }
+        )
+    return rows
+
+
+# ------------------------------------------------------------------------------------ reports
+def _run_report(results: Path, out: Path, options: ReportOptions) -> ReportResult:
+    run = read_json(results / RUN_FILE)
+    metrics = read_json(results / METRICS_FILE)
+    tracker = run["tracker"]
+    opts = run["options"]
+    faults = fault_config_from_mapping(dict(opts["faults"]))
+    files: list[Path] = []
+    notes: list[str] = []
+    md = [
+        f"# Report: {tracker['name']} on {len(run['sequences'])} sequence(s)",
+        "",
+        f"Results folder: `{results}`. Tracker: **{tracker['name']}** ({tracker['description']});"
+        f" detection mode `{tracker['detection_mode']}`.",
+        "",
+        "## Configuration",
+        "",
+        f"- faults: **{faults.name}** — {faults.description or 'custom'}",
+        *[f"  - {line}" for line in faults.describe_lines()],
+        f"- inputs requested: poses `{opts['poses']}`, masks `{opts['masks']}`, flow "
+        f"`{opts['flow']}`; initial condition `{opts['init']}`; seed {opts['seed']}; invalid "
+        f"estimates scored as `{opts['invalid']}`",
+        f"- versions: {', '.join(f'{k} {v}' for k, v in run.get('versions', {}).items())}",
+        "",
+        "## Metrics",
+        "",
+        "ALL pools the frames of every sequence; MEAN averages the per-sequence numbers "
+        "(docs/metrics.md).",
+        "",
+        markdown_table(
+            [Column("name", "sequence", align="left"), *METRIC_COLUMNS], _metrics_rows(metrics)
+        ),
+        "## Synchronisation and consistency",
+        "",
+        "Mean error in the 3 frames before / from each pose arrival; poses rejected by the "
+        "tracker and the share of injected outliers among them; frames to recover after a "
+        "burst of lost poses; mean NEES of the 12-D state (95 % band for one run: "
+        "[4.40, 23.34]).",
+        "",
+        markdown_table(_SYNC_COLUMNS, _sync_rows(metrics)),
+    ]
+    wanted = set(options.sequences) if options.sequences else None
+    for seq in run["sequences"]:
+        name = seq["name"]
+        if wanted is not None and name not in wanted:
+            continue
+        folder = results / name
+        md += [f"## {name}", ""]
+        md.append(
+            f"{seq['frames']} frames at {seq['fps']} fps, {seq['resolution'][0]}x"
+            f"{seq['resolution'][1]}; inputs: poses `{seq['inputs']['poses']}`, masks "
+            f"`{seq['inputs']['masks']}`, flow `{seq['inputs']['flow']}`."
+        )
+        md.append("")
+        arrivals = np.unique(load_deliveries(folder / DELIVERIES_FILE)["pose"].arrival_k)
+        m = None
+        if (folder / FRAME_ERRORS_FILE).is_file():
+            m = load_frame_errors(folder / FRAME_ERRORS_FILE)
+            p1 = _error_plot(
+                m, arrivals, out / "plots" / f"{name}_errors.png", name, options.panel_px
+            )
+            p2 = _accuracy_plot(m, out / "plots" / f"{name}_accuracy.png", name, options.panel_px)
+            files += [p1, p2]
+            md += [f"![errors]({_rel(p1, out)})", "", f"![accuracy]({_rel(p2, out)})", ""]
+        else:
+            notes.append(f"{name}: no ground truth, no error plots")
+        if options.video:
+            try:
+                written, note = _write_video(
+                    seq, run, folder, out, options, _still_frames(m, arrivals, seq["frames"])
+                )
+            except (RoftSimError, OSError) as e:
+                written, note = [], f"{name}: no overlay video ({e})"
+            if note:
+                notes.append(note)
+            files += written
+            if written:
+                md.append(
+                    f"Overlay video: [{_rel(written[0], out)}]({_rel(written[0], out)}) "
+                    "(green: ground truth, magenta: estimate, yellow: the newest mask the "
+                    "tracker received, cyan: a pose detection as it arrives, red banner: "
+                    "arrival)."
+                )
+                md.append("")
+                md += [f"![{p.stem}]({_rel(p, out)})" for p in written[1:]]
+                md.append("")
+    if notes:
+        md += ["## Notes", "", *[f"- {n}" for n in notes], ""]
+    report = out / "report.md"
+    atomic_write_text(report, "\n".join(md) + "\n")
+    return ReportResult(out_dir=out, markdown=report, files=tuple(files), notes=tuple(notes))
+
+
+def _cells_from_records(records: dict[str, dict[str, Any]]) -> list[SweepCell]:
+    cells = []
+    for cell_id, r in records.items():
+        cells.append(
+            SweepCell(
+                cell_id=cell_id,
+                label=r["label"],
+                fault_label=r["faults"],
+                parameter=r["parameter"],
+                value=r["value"],
+                sequence_path=r["sequence_path"],
+                sequence_name=r["sequence"],
+                options=options_from_record(r["options"]),
+            )
+        )
+    return cells
+
+
+def _sweep_report(results: Path, out: Path, options: ReportOptions) -> ReportResult:
+    from roft_sim.harness.sweep import write_summary
+
+    sweep = read_json(results / "sweep.json")
+    records = finished_cells(results / CELLS_DIR)
+    planned = sweep.get("cells", list(records))
+    missing = [c for c in planned if c not in records]
+    ordered = {c: records[c] for c in planned if c in records}
+    cells = _cells_from_records(ordered)
+    if not cells:
+        raise ConfigError(f"sweep {str(results)!r} has no finished cell; run it (--resume)")
+    parameter = cells[0].parameter
+    _, plots = write_summary(
+        sweep["config"]["name"],
+        cells,
+        ordered,
+        out,
+        parameter=parameter,
+        panel_px=options.panel_px,
+        cells_dir=results / CELLS_DIR,
+    )
+    notes = [f"{len(missing)} planned cells are not finished"] if missing else []
+    summary = (out / "summary.md").read_text(encoding="utf-8")
+    report = out / "report.md"
+    text = summary + ("\n## Notes\n\n" + "\n".join(f"- {n}" for n in notes) + "\n" if notes else "")
+    atomic_write_text(report, text)
+    return ReportResult(out_dir=out, markdown=report, files=tuple(plots), notes=tuple(notes))
+
+
+def build_report(
+    results_dir: str | Path,
+    *,
+    out_dir: str | Path | None = None,
+    options: ReportOptions | None = None,
+) -> ReportResult:
+    """Writes the report of a ``run`` or ``sweep`` results folder (default: into
+    ``<results_dir>/report``).
+
+    Raises:
+        ConfigError: not a results folder of ``roft-sim run`` or ``roft-sim sweep``.
+    """
+    results = Path(results_dir)
+    options = options or ReportOptions()
+    out = Path(out_dir) if out_dir is not None else results / "report"
+    if (results / RUN_FILE).is_file():
+        try:
+            return _run_report(results, out, options)
+        except DatasetFormatError as e:
+            raise ConfigError(f"{results}: {e}") from None
+    if (results / "sweep.json").is_file():
+        return _sweep_report(results, out, options)
+    raise ConfigError(
+        f"{str(results)!r} is not a results folder: expected run.json (roft-sim run) or "
+        "sweep.json (roft-sim sweep)"
+    )

@@ -1,0 +1,663 @@
+"""``roft-sim sweep``: a grid of runs (trackers x fault configurations x a swept fault parameter x
+sequences x seeds), run as independent cells in parallel, resumable, summarised in tables and
+plots.
+
+A sweep file (TOML; paths relative to the file)::
+
+    name = "delay"
+    datasets = ["../data/ci"]                  # sequences or dataset roots
+    trackers = ["roft", "naive-delay", "pose-only-ukf"]
+    faults = ["paper"]                         # base fault presets or files
+    seeds = [0]
+    flow = "auto"                              # poses, masks, init, invalid, include_rgb too
+
+    [parameter]                                # optional: a swept fault parameter
+    name = "delay"                             # delay [frames] | dropout [probability]
+    values = [0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20]
+    streams = ["pose", "mask"]
+
+    [[variants]]                               # optional: extra tracker rows with settings
+    label = "roft w/o pose sync"
+    name = "roft"
+    config = "roft_no_sync.toml"
+
+``delay = d`` replaces every delay fault of the chosen streams of the base configuration by a
+fixed delay of ``d`` frames; ``dropout = p`` adds an independent loss with probability ``p`` per
+result (the same seed loses a superset of results as ``p`` grows, so curves stay smooth).
+
+Outputs (docs/running.md): ``cells/<cell_id>/`` (one run folder per cell), ``summary.md``,
+``summary.csv``, ``summary.tex`` (one row per tracker x faults x parameter value, pooled over
+sequences and seeds: the "ALL" metrics), ``cells.csv`` (one row per cell), ``timing.csv`` (step
+times; kept apart so the summary files are identical whenever the estimates are), ``plots/``
+(error versus the parameter, per-frame error traces with pose arrivals) and ``sweep.json``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+
+from roft_sim.config_files import dataclass_from_mapping, jsonable, load_toml
+from roft_sim.datasets import open_sequence
+from roft_sim.errors import ConfigError
+from roft_sim.faults import BernoulliDropout, FaultConfig, FixedDelay, load_faults
+from roft_sim.harness.cells import (
+    CELLS_DIR,
+    SweepCell,
+    execute_cells,
+    load_cell_metrics,
+    make_cell_id,
+)
+from roft_sim.harness.executors import Executor
+from roft_sim.harness.options import InitPolicy, RunOptions
+from roft_sim.harness.outputs import DELIVERIES_FILE, load_deliveries, write_json
+from roft_sim.harness.run_dataset import find_sequences
+from roft_sim.metrics import SequenceMetrics, concatenate_metrics, step_time_stats
+from roft_sim.report.plotting import LinePlot, save_png, stack_images
+from roft_sim.report.tables import Column, csv_table, latex_table, markdown_table
+from roft_sim.trackers import get_tracker_spec, load_tracker_config
+
+__all__ = [
+    "TrackerVariant",
+    "SweptParameter",
+    "SweepConfig",
+    "SWEPT_PARAMETERS",
+    "load_sweep_config",
+    "parse_parameter",
+    "apply_parameter",
+    "plan_sweep",
+    "SweepResult",
+    "run_sweep",
+    "summarize_cells",
+    "SUMMARY_COLUMNS",
+]
+
+SWEPT_PARAMETERS: dict[str, str] = {
+    "delay": "fixed delay [frames] of the chosen streams (replaces their delay faults)",
+    "dropout": "independent loss probability per result of the chosen streams (added)",
+}
+"""The fault parameters a sweep can vary, with what they do."""
+
+_DELAY_KINDS = ("delay", "uniform_delay", "lognormal_delay", "empirical_delay")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class TrackerVariant:
+    """A tracker row with its own settings (``[[variants]]``)."""
+
+    label: str
+    """Row label (unique in the sweep)."""
+    name: str
+    """Registry name of the tracker."""
+    config: Path | None = None
+    """TOML file of its settings (relative to the sweep file); None = defaults."""
+
+    def __post_init__(self) -> None:
+        if not self.label.strip():
+            raise ConfigError("a variant needs a non-empty label")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class SweptParameter:
+    """A fault parameter varied over a list of values (``[parameter]``)."""
+
+    name: Literal["delay", "dropout"]
+    """``delay`` [frames] or ``dropout`` [probability per result]."""
+    values: tuple[float, ...]
+    """The values, in plot order."""
+    streams: tuple[Literal["pose", "mask"], ...] = ("pose", "mask")
+    """The detection streams it acts on."""
+
+    def __post_init__(self) -> None:
+        if self.name not in SWEPT_PARAMETERS:
+            raise ConfigError(
+                f"unknown swept parameter {self.name!r}; expected one of "
+                f"{', '.join(SWEPT_PARAMETERS)}"
+            )
+        if not self.values:
+            raise ConfigError(f"parameter {self.name!r} needs at least one value")
+        if not self.streams or any(s not in ("pose", "mask") for s in self.streams):
+            raise ConfigError(f"parameter streams must be pose and/or mask, got {self.streams}")
+        for v in self.values:
+            if not math.isfinite(v):
+                raise ConfigError(f"parameter {self.name!r}: value {v} is not finite")
+            if self.name == "delay" and (v < 0 or v != int(v)):
+                raise ConfigError(f"delay values are whole frames >= 0, got {v}")
+            if self.name == "dropout" and not 0 <= v <= 1:
+                raise ConfigError(f"dropout values are probabilities in [0, 1], got {v}")
+        if len(set(self.values)) != len(self.values):
+            raise ConfigError(f"parameter {self.name!r} lists a value twice: {self.values}")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class SweepConfig:
+    """A sweep: the grid and the inputs every cell shares (see the module docstring)."""
+
+    name: str = "sweep"
+    """Shown in the summary."""
+    datasets: tuple[Path, ...] = ()
+    """Sequences or dataset roots."""
+    trackers: tuple[str, ...] = ()
+    """Registry names of trackers run with their default settings."""
+    variants: tuple[TrackerVariant, ...] = ()
+    """Trackers with settings, each its own row."""
+    faults: tuple[str, ...] = ("paper",)
+    """Base fault presets or files (each a grid value)."""
+    parameter: SweptParameter | None = None
+    """The swept fault parameter, or None."""
+    seeds: tuple[int, ...] = (0,)
+    """Run seeds (each a grid value; pooled in the summary)."""
+    flow: str = "auto"
+    """Flow source for every cell (see ``roft-sim run --flow``)."""
+    poses: str = "auto"
+    """Pose set for every cell."""
+    masks: str = "auto"
+    """Mask set for every cell."""
+    init: InitPolicy = "first-detection"
+    """Initial condition."""
+    invalid: Literal["failure", "exclude", "as_given"] = "failure"
+    """How frames without a pose are scored."""
+    include_rgb: bool = True
+    """Hand rgb images to the trackers."""
+    extra: dict[str, Any] = field(default_factory=dict)
+    """Free-form notes copied into ``sweep.json``."""
+
+    def __post_init__(self) -> None:
+        if not self.datasets:
+            raise ConfigError("a sweep needs at least one dataset (datasets = [...])")
+        if not self.trackers and not self.variants:
+            raise ConfigError("a sweep needs at least one tracker (trackers = [...])")
+        if not self.faults:
+            raise ConfigError("a sweep needs at least one fault configuration (faults = [...])")
+        if not self.seeds or any(s < 0 for s in self.seeds):
+            raise ConfigError(f"seeds must be a non-empty list of integers >= 0, got {self.seeds}")
+        labels = [*self.trackers, *(v.label for v in self.variants)]
+        dup = sorted({x for x in labels if labels.count(x) > 1})
+        if dup:
+            raise ConfigError(f"tracker labels must be unique in a sweep, repeated: {dup}")
+
+
+def load_sweep_config(path: str | Path) -> SweepConfig:
+    """Loads a sweep file (strict TOML; paths relative to the file)."""
+    path = Path(path)
+    config = dataclass_from_mapping(SweepConfig, load_toml(path), where=str(path))
+    base = path.resolve().parent
+
+    def rel(p: Path | None) -> Path | None:
+        return None if p is None else (p if p.is_absolute() else base / p)
+
+    return dataclasses.replace(
+        config,
+        datasets=tuple(rel(p) for p in config.datasets),  # type: ignore[misc]
+        variants=tuple(dataclasses.replace(v, config=rel(v.config)) for v in config.variants),
+    )
+
+
+def parse_parameter(text: str, *, streams: Sequence[str] = ("pose", "mask")) -> SweptParameter:
+    """``delay=0:20:2`` (start:stop:step, stop included) or ``dropout=0,0.1,0.3`` (a list).
+
+    Raises:
+        ConfigError: not ``NAME=VALUES``, or bad values.
+    """
+    name, sep, values = text.partition("=")
+    if not sep or not values.strip():
+        raise ConfigError(
+            f"--param {text!r}: expected NAME=VALUES, e.g. delay=0:20:2 or dropout=0,0.1,0.2"
+        )
+    try:
+        if ":" in values:
+            parts = [float(x) for x in values.split(":")]
+            if len(parts) != 3 or parts[2] <= 0 or parts[1] < parts[0]:
+                raise ValueError
+            start, stop, step = parts
+            count = int(math.floor((stop - start) / step + 1e-9)) + 1
+            numbers = tuple(round(start + i * step, 12) for i in range(count))
+        else:
+            numbers = tuple(float(x) for x in values.split(","))
+    except ValueError:
+        raise ConfigError(
+            f"--param {text!r}: values must be start:stop:step (step > 0) or a comma list of "
+            "numbers"
+        ) from None
+    return SweptParameter(
+        name=name.strip(),  # type: ignore[arg-type]
+        values=numbers,
+        streams=tuple(streams),  # type: ignore[arg-type]
+    )
+
+
+def apply_parameter(faults: FaultConfig, parameter: SweptParameter, value: float) -> FaultConfig:
+    """The fault configuration ``faults`` with ``parameter = value`` (see the module docstring)."""
+    changes: dict[str, Any] = {}
+    for stream in parameter.streams:
+        cfg = faults.detection_stream(stream)
+        if parameter.name == "delay":
+            kept = tuple(f for f in cfg.faults if getattr(f, "kind", None) not in _DELAY_KINDS)
+            new = (*kept, FixedDelay(frames=int(value)))
+        else:
+            new = (*cfg.faults, BernoulliDropout(p=float(value)))
+        changes[stream] = dataclasses.replace(cfg, faults=new)
+    label = f"{faults.name}+{parameter.name}={value:g}"
+    return dataclasses.replace(faults, name=label, **changes)
+
+
+def _tracker_rows(config: SweepConfig) -> list[tuple[str, str, Any]]:
+    """``(label, tracker name, config instance)`` per tracker row."""
+    rows = []
+    for name in config.trackers:
+        spec = get_tracker_spec(name)
+        rows.append((name, spec.name, load_tracker_config(spec, None)))
+    for v in config.variants:
+        spec = get_tracker_spec(v.name)
+        if v.config is not None and not Path(v.config).is_file():
+            raise ConfigError(f"variant {v.label!r}: config file {str(v.config)!r} does not exist")
+        rows.append((v.label, spec.name, load_tracker_config(spec, v.config)))
+    return rows
+
+
+def plan_sweep(config: SweepConfig) -> list[SweepCell]:
+    """Every cell of the grid, in (tracker, faults, value, sequence, seed) order.
+
+    Raises:
+        ConfigError: unknown tracker, fault preset, or bad dataset path.
+    """
+    trackers = _tracker_rows(config)
+    base_faults = [(spec, load_faults(spec)) for spec in config.faults]
+    paths = find_sequences(config.datasets)
+    sequences = [(str(p.resolve()), open_sequence(p)) for p in paths]
+    values: list[float | None] = list(config.parameter.values) if config.parameter else [None]
+    cells = []
+    for label, name, tracker_config in trackers:
+        for fault_label, faults in base_faults:
+            for value in values:
+                cell_faults = (
+                    faults
+                    if value is None or config.parameter is None
+                    else apply_parameter(faults, config.parameter, value)
+                )
+                for path, seq in sequences:
+                    cell_faults.check_camera_rate(int(seq.fps))
+                    for seed in config.seeds:
+                        options = RunOptions(
+                            tracker=name,
+                            tracker_config=tracker_config,
+                            faults=cell_faults,
+                            flow=config.flow,
+                            poses=config.poses,
+                            masks=config.masks,
+                            init=config.init,
+                            seed=int(seed),
+                            include_rgb=config.include_rgb,
+                            invalid=config.invalid,
+                        )
+                        parameter = config.parameter.name if config.parameter else None
+                        cells.append(
+                            SweepCell(
+                                cell_id=make_cell_id(
+                                    label=label,
+                                    fault_label=fault_label,
+                                    parameter=parameter,
+                                    value=value,
+                                    sequence_name=seq.name,
+                                    sequence_path=path,
+                                    options=options,
+                                ),
+                                label=label,
+                                fault_label=fault_label,
+                                parameter=parameter,
+                                value=value,
+                                sequence_path=path,
+                                sequence_name=seq.name,
+                                options=options,
+                            )
+                        )
+    return cells
+
+
+# --------------------------------------------------------------------------------- summary
+SUMMARY_COLUMNS: tuple[Column, ...] = (
+    Column("tracker", "tracker", align="left"),
+    Column("faults", "faults", align="left"),
+    Column("value", "value", "g"),
+    Column("sequences", "sequences", "d"),
+    Column("frames", "frames", "d"),
+    Column("add_auc_pct", "ADD-AUC %", ".2f"),
+    Column("rmse_t_cm", "e_t cm", ".2f"),
+    Column("rmse_a_deg", "e_a deg", ".2f"),
+    Column("rmse_v_cmps", "e_v cm/s", ".2f"),
+    Column("rmse_w_dps", "e_w deg/s", ".2f"),
+)
+"""Columns of ``summary.*`` (deterministic: no timing)."""
+
+_CELL_COLUMNS: tuple[Column, ...] = (
+    Column("cell_id", "cell", align="left"),
+    Column("tracker", "tracker", align="left"),
+    Column("faults", "faults", align="left"),
+    Column("value", "value", "g"),
+    Column("sequence", "sequence", align="left"),
+    Column("seed", "seed", "d"),
+    Column("frames", "frames", "d"),
+    Column("add_auc_pct", "ADD-AUC %", ".2f"),
+    Column("rmse_t_cm", "e_t cm", ".2f"),
+    Column("rmse_a_deg", "e_a deg", ".2f"),
+    Column("rmse_v_cmps", "e_v cm/s", ".2f"),
+    Column("rmse_w_dps", "e_w deg/s", ".2f"),
+)
+
+_TIMING_COLUMNS: tuple[Column, ...] = (
+    Column("tracker", "tracker", align="left"),
+    Column("faults", "faults", align="left"),
+    Column("value", "value", "g"),
+    Column("steps", "steps", "d"),
+    Column("time_median_ms", "step ms (median)", ".3f"),
+    Column("time_p95_ms", "step ms (p95)", ".3f"),
+    Column("time_mean_ms", "step ms (mean)", ".3f"),
+)
+
+_METRIC_KEYS = ("add_auc_pct", "rmse_t_cm", "rmse_a_deg", "rmse_v_cmps", "rmse_w_dps")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class SweepResult:
+    """What :func:`run_sweep` produced."""
+
+    out_dir: Path
+    """The sweep folder."""
+    cells: tuple[SweepCell, ...]
+    """The planned cells."""
+    records: dict[str, dict[str, Any]]
+    """``cell.json`` of every cell, by id."""
+    summary_rows: list[dict[str, Any]]
+    """One row per tracker x faults x value (pooled over sequences and seeds)."""
+    plots: list[Path]
+    """The plots written."""
+
+
+def _group_key(cell: SweepCell) -> tuple[str, str, float | None]:
+    return (cell.label, cell.fault_label, cell.value)
+
+
+def summarize_cells(
+    cells: Sequence[SweepCell], cells_dir: Path
+) -> tuple[list[dict[str, Any]], list[dict[str, Any]], dict[tuple, SequenceMetrics]]:
+    """Summary rows (pooled per tracker x faults x value), timing rows, and the pooled metrics.
+
+    The pooled "ALL" metrics concatenate the per-frame errors of every sequence and seed of a
+    group (the reference's ALL row).
+    """
+    groups: dict[tuple[str, str, float | None], list[SweepCell]] = {}
+    for cell in cells:
+        groups.setdefault(_group_key(cell), []).append(cell)
+    rows, timing, pooled = [], [], {}
+    for key, members in groups.items():
+        parts = [m for c in members if (m := load_cell_metrics(cells_dir, c.cell_id)) is not None]
+        label, fault_label, value = key
+        row: dict[str, Any] = {
+            "tracker": label,
+            "faults": fault_label,
+            "value": value,
+            "sequences": len({c.sequence_name for c in members}),
+        }
+        if parts:
+            m = concatenate_metrics(parts)
+            pooled[key] = m
+            summary = m.summary()
+            row |= {"frames": summary["frames"]} | {k: summary[k] for k in _METRIC_KEYS}
+            if m.step_times_s is not None:
+                t = step_time_stats(m.step_times_s)
+                timing.append(
+                    {
+                        "tracker": label,
+                        "faults": fault_label,
+                        "value": value,
+                        "steps": t.steps,
+                        "time_median_ms": t.median_ms,
+                        "time_p95_ms": t.p95_ms,
+                        "time_mean_ms": t.mean_ms,
+                    }
+                )
+        rows.append(row)
+    return rows, timing, pooled
+
+
+def _cell_rows(cells: Sequence[SweepCell], records: dict[str, dict[str, Any]]) -> list[dict]:
+    rows = []
+    for c in cells:
+        metrics = records[c.cell_id].get("metrics", {})
+        rows.append(
+            {
+                "cell_id": c.cell_id,
+                "tracker": c.label,
+                "faults": c.fault_label,
+                "value": c.value,
+                "sequence": c.sequence_name,
+                "seed": c.options.seed,
+                "frames": metrics.get("frames"),
+                **{k: metrics.get(k) for k in _METRIC_KEYS},
+            }
+        )
+    return rows
+
+
+def _columns(parameter: str | None, columns: Sequence[Column]) -> list[Column]:
+    if parameter is None:
+        return [c for c in columns if c.key != "value"]
+    return [Column(c.key, parameter, c.fmt) if c.key == "value" else c for c in columns]
+
+
+_PARAMETER_AXIS = {"delay": "delay [frames]", "dropout": "dropout probability"}
+_PANELS = (
+    ("add_auc_pct", "ADD-AUC", "%"),
+    ("rmse_t_cm", "position RMSE", "cm"),
+    ("rmse_a_deg", "rotation RMSE", "deg"),
+    ("rmse_v_cmps", "velocity RMSE", "cm/s"),
+)
+
+
+def plot_error_vs_parameter(
+    rows: Sequence[dict[str, Any]], parameter: str, path: Path, *, panel_px: tuple[int, int]
+) -> Path:
+    """A 2x2 figure of the pooled metrics versus the swept parameter, one line per tracker
+    (and base fault configuration when there are several)."""
+    fault_labels = sorted({r["faults"] for r in rows})
+    lines: dict[str, list[dict[str, Any]]] = {}
+    for r in rows:
+        name = r["tracker"] if len(fault_labels) == 1 else f"{r['tracker']} ({r['faults']})"
+        lines.setdefault(name, []).append(r)
+    panels = []
+    for key, title, unit in _PANELS:
+        plot = LinePlot(
+            width_px=panel_px[0],
+            height_px=panel_px[1],
+            title=f"{title} vs {parameter}",
+            x_label=_PARAMETER_AXIS.get(parameter, parameter),
+            y_label=f"{title} [{unit}]",
+            x_integer=parameter == "delay",
+        )
+        for i, (name, members) in enumerate(lines.items()):
+            members = sorted(members, key=lambda r: r["value"])
+            y = [np.nan if r.get(key) is None else r[key] for r in members]
+            plot.add_line(
+                [r["value"] for r in members],
+                y,
+                label=name,
+                marker=("o", "s", "^", "d", "x")[i % 5],
+            )
+        panels.append(plot.render())
+    top = stack_images(panels[:2], direction="horizontal")
+    bottom = stack_images(panels[2:], direction="horizontal")
+    return save_png(path, stack_images([top, bottom]))
+
+
+def plot_error_traces(
+    cells: Sequence[SweepCell],
+    cells_dir: Path,
+    path: Path,
+    *,
+    title: str,
+    panel_px: tuple[int, int],
+) -> Path:
+    """Per-frame position and rotation error of several cells of ONE sequence (one line each),
+    with the pose arrivals of the first cell that gets detections through the fault stream."""
+    pos = LinePlot(
+        width_px=panel_px[0],
+        height_px=panel_px[1],
+        title=f"{title}: position error",
+        x_label="frame",
+        y_label="error [cm]",
+    )
+    rot = LinePlot(
+        width_px=panel_px[0],
+        height_px=panel_px[1],
+        title=f"{title}: rotation error",
+        x_label="frame",
+        y_label="error [deg]",
+    )
+    arrivals = None
+    for cell in cells:
+        m = load_cell_metrics(cells_dir, cell.cell_id)
+        if m is None:
+            continue
+        pos.add_line(m.frame_index, m.t_err_norm_cm, label=cell.label, width_px=1)
+        rot.add_line(m.frame_index, m.a_err_deg, label=cell.label, width_px=1)
+        spec = get_tracker_spec(cell.options.tracker)
+        deliveries = cells_dir / cell.cell_id / DELIVERIES_FILE
+        if arrivals is None and spec.detection_mode == "stream" and deliveries.is_file():
+            arrivals = np.unique(load_deliveries(deliveries)["pose"].arrival_k)
+    for plot in (pos, rot):
+        if arrivals is not None:
+            plot.add_events(arrivals, label="pose arrives", color=(200, 200, 200))
+    return save_png(path, stack_images([pos.render(), rot.render()]))
+
+
+def _trace_groups(cells: Sequence[SweepCell]) -> list[tuple[str, list[SweepCell]]]:
+    """The cells traced: first sequence and seed; per base faults, the first, middle and last
+    parameter value."""
+    if not cells:
+        return []
+    first_seq, first_seed = cells[0].sequence_name, cells[0].options.seed
+    chosen = [c for c in cells if c.sequence_name == first_seq and c.options.seed == first_seed]
+    values = sorted({c.value for c in chosen if c.value is not None})
+    if values:
+        keep = {values[0], values[len(values) // 2], values[-1]}
+        chosen = [c for c in chosen if c.value in keep]
+    groups: dict[tuple[str, float | None], list[SweepCell]] = {}
+    for c in chosen:
+        groups.setdefault((c.fault_label, c.value), []).append(c)
+    out = []
+    for (fault_label, value), members in groups.items():
+        name = fault_label if value is None else f"{fault_label} {members[0].parameter}={value:g}"
+        out.append((name, members))
+    return out
+
+
+def _safe_name(text: str) -> str:
+    return "".join(ch if ch.isalnum() or ch in "-_=." else "_" for ch in text)
+
+
+def write_summary(
+    config_name: str,
+    cells: Sequence[SweepCell],
+    records: dict[str, dict[str, Any]],
+    out_dir: Path,
+    *,
+    parameter: str | None,
+    plots: bool = True,
+    panel_px: tuple[int, int] = (560, 340),
+    cells_dir: Path | None = None,
+) -> tuple[list[dict[str, Any]], list[Path]]:
+    """Writes ``summary.{md,csv,tex}``, ``cells.csv``, ``timing.csv`` and the plots into
+    ``out_dir`` (the cells are read from ``cells_dir``, default ``out_dir/cells``)."""
+    from roft_sim.datasets.atomic_files import atomic_write_text
+
+    cells_dir = cells_dir if cells_dir is not None else out_dir / CELLS_DIR
+    rows, timing, _ = summarize_cells(cells, cells_dir)
+    columns = _columns(parameter, SUMMARY_COLUMNS)
+    written: list[Path] = []
+    if plots:
+        plot_dir = out_dir / "plots"
+        if parameter is not None:
+            written.append(
+                plot_error_vs_parameter(
+                    rows, parameter, plot_dir / f"error_vs_{parameter}.png", panel_px=panel_px
+                )
+            )
+        for name, members in _trace_groups(cells):
+            seq = members[0].sequence_name
+            written.append(
+                plot_error_traces(
+                    members,
+                    cells_dir,
+                    plot_dir / f"trace_{_safe_name(name)}_{_safe_name(seq)}.png",
+                    title=f"{seq}, {name}",
+                    panel_px=(2 * panel_px[0], panel_px[1]),
+                )
+            )
+    md = [f"# Sweep: {config_name}", ""]
+    md.append(
+        f"{len(cells)} cells: {len({c.label for c in cells})} trackers x "
+        f"{len({(c.fault_label, c.value) for c in cells})} fault configurations x "
+        f"{len({c.sequence_name for c in cells})} sequences x "
+        f"{len({c.options.seed for c in cells})} seeds. Metrics pooled over the frames of every "
+        "sequence and seed (ALL)."
+    )
+    md += ["", markdown_table(columns, rows)]
+    for p in written:
+        md.append(f"![{p.stem}]({p.relative_to(out_dir).as_posix()})\n")
+    atomic_write_text(out_dir / "summary.md", "\n".join(md))
+    atomic_write_text(out_dir / "summary.csv", csv_table(columns, rows))
+    atomic_write_text(
+        out_dir / "summary.tex",
+        latex_table(columns, rows, caption=f"Sweep {config_name}: pooled metrics (ALL)"),
+    )
+    atomic_write_text(
+        out_dir / "cells.csv",
+        csv_table(_columns(parameter, _CELL_COLUMNS), _cell_rows(cells, records)),
+    )
+    atomic_write_text(
+        out_dir / "timing.csv", csv_table(_columns(parameter, _TIMING_COLUMNS), timing)
+    )
+    return rows, written
+
+
+def run_sweep(
+    config: SweepConfig,
+    out_dir: str | Path,
+    *,
+    executor: Executor | None = None,
+    progress: bool = False,
+    plots: bool = True,
+) -> SweepResult:
+    """Plans the grid, runs the unfinished cells, writes the summary and plots.
+
+    Resumable: run it again on the same ``out_dir`` and only the missing cells run.
+
+    Raises:
+        ConfigError: bad configuration (before anything runs).
+        WorkUnitError: a cell failed (finished cells are kept).
+    """
+    out = Path(out_dir)
+    cells = plan_sweep(config)
+    out.mkdir(parents=True, exist_ok=True)
+    write_json(
+        out / "sweep.json",
+        {
+            "kind": "sweep",
+            "config": jsonable(config),
+            "cells": [c.cell_id for c in cells],
+        },
+    )
+    records = execute_cells(cells, out / CELLS_DIR, executor=executor, progress=progress)
+    parameter = config.parameter.name if config.parameter else None
+    rows, written = write_summary(
+        config.name, cells, records, out, parameter=parameter, plots=plots
+    )
+    return SweepResult(
+        out_dir=out, cells=tuple(cells), records=records, summary_rows=rows, plots=written
+    )

@@ -1,0 +1,98 @@
+"""`roft-sim run` end to end, and its error paths."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from harness_cases import write_box_dataset
+
+from roft_sim.cli import main
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory):
+    return write_box_dataset(tmp_path_factory.mktemp("data"))
+
+
+def test_run_prints_a_table_and_writes_results(dataset, tmp_path, capsys):
+    out = tmp_path / "out"
+    code = main(
+        ["run", str(dataset), "--tracker", "detector-hold", "--flow", "none", "--out", str(out)]
+    )
+    assert code == 0
+    table = capsys.readouterr().out.splitlines()
+    assert table[0].split()[:3] == ["sequence", "ADD-AUC", "%"]
+    assert [line.split()[0] for line in table[2:]] == ["box_a", "box_b", "ALL", "MEAN"]
+    assert (out / "box_a" / "pose_estimate.txt").is_file()
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert set(metrics) == {"ALL", "MEAN", "box_a", "box_b"}
+
+
+def test_run_json_and_single_sequence(dataset, tmp_path, capsys):
+    out = tmp_path / "out"
+    args = ["run", str(dataset / "box_b"), "--tracker", "pose-only-ukf", "--faults", "bursts"]
+    code = main([*args, "--seed", "4", "--out", str(out), "--json"])
+    assert code == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["out"] == str(out)
+    assert list(summary["metrics"]) == ["ALL", "MEAN", "box_b"]
+    run = json.loads((out / "run.json").read_text())
+    assert run["options"]["seed"] == 4 and run["options"]["faults"]["name"] == "bursts"
+    assert "--seed=4" in run["command"]
+
+
+def test_tracker_config_file(dataset, tmp_path):
+    config = tmp_path / "hold.toml"
+    config.write_text('velocity = "zero"\n')
+    out = tmp_path / "out"
+    args = ["run", str(dataset), "--tracker", "detector-hold", "--tracker-config", str(config)]
+    assert main([*args, "--flow", "none", "--out", str(out)]) == 0
+    run = json.loads((out / "run.json").read_text())
+    assert run["options"]["tracker_config"] == {"velocity": "zero"}
+
+
+def test_bad_dataset_path_is_a_usage_error(tmp_path, capsys):
+    code = main(
+        ["run", str(tmp_path / "nothing"), "--tracker", "roft", "--out", str(tmp_path / "o")]
+    )
+    assert code == 2
+    assert "does not exist" in capsys.readouterr().err
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert main(["run", str(empty), "--tracker", "roft", "--out", str(tmp_path / "o")]) == 2
+    assert "no sequence found" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+
+
+def test_unknown_tracker_lists_the_known_ones(dataset, tmp_path, capsys):
+    code = main(["run", str(dataset), "--tracker", "roftt", "--out", str(tmp_path / "o")])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert "no tracker named 'roftt'" in err
+    for name in ("detector-hold", "detector-ideal", "naive-delay", "pose-only-ukf", "roft"):
+        assert name in err
+
+
+def test_non_empty_out_needs_overwrite(dataset, tmp_path, capsys):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "keep.txt").write_text("x")
+    args = ["run", str(dataset), "--tracker", "detector-hold", "--flow", "none", "--out", str(out)]
+    assert main(args) == 2
+    assert "is not empty; pass --overwrite" in capsys.readouterr().err
+    assert (out / "keep.txt").exists()
+    assert main([*args, "--overwrite"]) == 0
+    assert not (out / "keep.txt").exists()
+
+
+def test_bad_inputs_are_usage_errors_before_writing(dataset, tmp_path, capsys):
+    out = tmp_path / "out"
+    base = ["run", str(dataset), "--tracker", "detector-hold", "--out", str(out)]
+    assert main([*base, "--poses", "posecnn"]) == 2
+    assert "no pose set 'posecnn'" in capsys.readouterr().err
+    assert main([*base, "--flow", "raft"]) == 2
+    assert "unknown flow source 'raft'" in capsys.readouterr().err
+    assert main([*base, "--faults", "papper"]) == 2
+    assert "did you mean 'paper'" in capsys.readouterr().err
+    assert not out.exists()
