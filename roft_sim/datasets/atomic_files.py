@@ -8,35 +8,57 @@ crashes and interrupts; files are not fsync'ed, so a power loss may still lose r
 
 from __future__ import annotations
 
+import contextlib
 import os
 from pathlib import Path
+from typing import TextIO
 
-__all__ = ["atomic_write_bytes", "atomic_write_text", "remove_temp_files", "temp_path_for"]
+__all__ = [
+    "atomic_write_bytes",
+    "atomic_write_text",
+    "remove_temp_files",
+    "temp_path_for",
+    "AtomicTextFiles",
+    "remove_file",
+]
 
 _TEMP_SUFFIX = ".tmp"
 
 
-def temp_path_for(path: Path) -> Path:
-    """The hidden temp path used while ``path`` is being written (unique per process)."""
-    return path.with_name(f".{path.name}.{os.getpid()}{_TEMP_SUFFIX}")
+def temp_path_for(path: str | os.PathLike[str]) -> str:
+    """The hidden temp path used while ``path`` is being written (unique per process).
+
+    Per-frame paths are plain strings on purpose: Python 3.11's pathlib interns every new file
+    name for the life of the process, which grows memory with the number of frames.
+    """
+    folder, name = os.path.split(os.fspath(path))
+    return os.path.join(folder, f".{name}.{os.getpid()}{_TEMP_SUFFIX}")
 
 
-def atomic_write_bytes(path: Path, data: bytes | memoryview) -> None:
+def atomic_write_bytes(path: str | os.PathLike[str], data: bytes | memoryview) -> None:
     """Writes ``data`` to ``path`` atomically, creating parent folders."""
-    path.parent.mkdir(parents=True, exist_ok=True)
+    path = os.fspath(path)
+    os.makedirs(os.path.dirname(path), exist_ok=True)
     tmp = temp_path_for(path)
     try:
         with open(tmp, "wb") as f:
             f.write(data)
         os.replace(tmp, path)
     except BaseException:
-        tmp.unlink(missing_ok=True)
+        with contextlib.suppress(FileNotFoundError):
+            os.remove(tmp)
         raise
 
 
-def atomic_write_text(path: Path, text: str) -> None:
+def atomic_write_text(path: str | os.PathLike[str], text: str) -> None:
     """Writes UTF-8 ``text`` to ``path`` atomically, with ``\\n`` line ends on every platform."""
     atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def remove_file(path: str | os.PathLike[str]) -> None:
+    """Deletes a file if it exists (a detector miss after a retried frame leaves no stale file)."""
+    with contextlib.suppress(FileNotFoundError):
+        os.remove(path)
 
 
 def remove_temp_files(root: Path) -> list[Path]:
@@ -50,3 +72,37 @@ def remove_temp_files(root: Path) -> list[Path]:
             p.unlink(missing_ok=True)
             removed.append(p)
     return removed
+
+
+class AtomicTextFiles:
+    """Several text files written piece by piece, then renamed into place together.
+
+    Use as a context manager: on a clean exit every file is closed and renamed to its final
+    name; on an exception the temp files are deleted and no final file is touched. Lets a
+    finalize step stream records into many files with flat memory.
+    """
+
+    def __init__(self) -> None:
+        self._open: dict[Path, tuple[str, TextIO]] = {}
+
+    def write(self, path: Path, text: str) -> None:
+        """Appends ``text`` to the file that will become ``path``."""
+        entry = self._open.get(path)
+        if entry is None:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            tmp = temp_path_for(path)
+            entry = (tmp, open(tmp, "w", encoding="utf-8", newline="\n"))  # noqa: SIM115
+            self._open[path] = entry
+        entry[1].write(text)
+
+    def __enter__(self) -> AtomicTextFiles:
+        return self
+
+    def __exit__(self, exc_type: type | None, exc: BaseException | None, tb: object) -> None:
+        for _, f in self._open.values():
+            f.close()
+        for path, (tmp, _) in self._open.items():
+            if exc is None:
+                os.replace(tmp, path)
+            else:
+                remove_file(tmp)

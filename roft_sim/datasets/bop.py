@@ -31,15 +31,21 @@ from __future__ import annotations
 import csv
 import io
 import json
+import os
 import re
-from collections.abc import Mapping
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from roft_sim.datasets.atomic_files import atomic_write_bytes, atomic_write_text
+from roft_sim.datasets.atomic_files import (
+    AtomicTextFiles,
+    atomic_write_bytes,
+    atomic_write_text,
+    remove_file,
+)
 from roft_sim.datasets.base import GT_MASK_SET, DetectorPoses
 from roft_sim.datasets.fast_ycb_codec import (
     decode_flow_float,
@@ -219,7 +225,7 @@ class BopWriter(StreamingWriter):
 
     def _write_frame_files(self, frame: DatasetFrame) -> dict[str, Any]:
         seq, k = self.sequence_path, frame.k
-        atomic_write_bytes(seq / "rgb" / f"{k:06d}.png", encode_png_rgb(frame.rgb))
+        atomic_write_bytes(f"{seq}/rgb/{k:06d}.png", encode_png_rgb(frame.rgb))
         q = np.rint(frame.depth_m.astype(np.float64) * (1000.0 / self.depth_scale_mm))
         if q.size and q.max() > 65535:
             raise ValueError(
@@ -227,13 +233,13 @@ class BopWriter(StreamingWriter):
                 f"depth with depth_scale {self.depth_scale_mm} mm "
                 f"({65535 * self.depth_scale_mm / 1000:.4f} m); raise depth_scale_mm"
             )
-        atomic_write_bytes(seq / "depth" / f"{k:06d}.png", encode_png_u16(q.astype(np.uint16)))
+        atomic_write_bytes(f"{seq}/depth/{k:06d}.png", encode_png_u16(q.astype(np.uint16)))
         extra: dict[str, Any] = {"gt_info": None}
         if frame.gt_mask is not None:
             full = frame.gt_mask_full if frame.gt_mask_full is not None else frame.gt_mask
-            atomic_write_bytes(seq / "mask" / f"{k:06d}_000000.png", encode_png_mask(full))
+            atomic_write_bytes(f"{seq}/mask/{k:06d}_000000.png", encode_png_mask(full))
             atomic_write_bytes(
-                seq / "mask_visib" / f"{k:06d}_000000.png", encode_png_mask(frame.gt_mask)
+                f"{seq}/mask_visib/{k:06d}_000000.png", encode_png_mask(frame.gt_mask)
             )
             n_all, n_visib = int(full.sum()), int(frame.gt_mask.sum())
             extra["gt_info"] = {
@@ -246,20 +252,20 @@ class BopWriter(StreamingWriter):
             }
         for name, flow in frame.flows.items():
             atomic_write_bytes(
-                seq / "extras" / "flow" / name / f"{k:06d}.float",
+                f"{seq}/extras/flow/{name}/{k:06d}.float",
                 encode_flow_float(flow.flow_px, self.settings.flow_encoding(name)),
             )
-            valid_path = seq / "extras" / "flow_valid" / name / f"{k:06d}.png"
+            valid_path = f"{seq}/extras/flow_valid/{name}/{k:06d}.png"
             if flow.valid is not None:
                 atomic_write_bytes(valid_path, encode_png_mask(flow.valid))
             else:
-                valid_path.unlink(missing_ok=True)
+                remove_file(valid_path)
         for name, mask in frame.detector_masks.items():
-            path = seq / "extras" / "masks" / name / f"{k:06d}.png"
+            path = f"{seq}/extras/masks/{name}/{k:06d}.png"
             if mask is not None:
                 atomic_write_bytes(path, encode_png_mask(mask))
             else:
-                path.unlink(missing_ok=True)
+                remove_file(path)
         return extra
 
     def _write_model(self, model: ObjectModel) -> None:
@@ -285,59 +291,67 @@ class BopWriter(StreamingWriter):
         write_mesh_obj(seq / "extras" / "model" / "mesh.obj", model.vertices_m, model.faces)
         write_points_xyz(seq / "extras" / "model" / "points.xyz", model.model_points_m)
 
-    def _assemble(self, records: list[dict[str, Any]], metadata: dict[str, Any]) -> None:
+    def _assemble(
+        self, records: Callable[[], Iterator[dict[str, Any]]], metadata: dict[str, Any]
+    ) -> None:
         seq, s = self.sequence_path, self.settings
-        cameras, gts, infos, times, velocities = {}, {}, {}, {}, {}
-        for r in records:
-            k = r["k"]
-            R_w2c, t_w2c = _r_t_mm(invert_transform(np.asarray(r["T_world_cam"])))
-            cameras[k] = {
-                "cam_K": s.intrinsics.K.ravel().tolist(),
-                "depth_scale": self.depth_scale_mm,
-                "cam_R_w2c": R_w2c,
-                "cam_t_w2c": t_w2c,
-            }
-            times[k] = {"t_s": r["t_s"]}
-            if r["gt_T_cam_obj"] is not None:
-                R, t = _r_t_mm(r["gt_T_cam_obj"])
-                gts[k] = [{"cam_R_m2c": R, "cam_t_m2c": t, "obj_id": self.obj_id}]
-            else:
-                gts[k] = []
-            infos[k] = [r["gt_info"]] if r["gt_info"] is not None else []
-            if r["gt_v_obj_mps"] is not None:
-                velocities[k] = [
-                    {
-                        "obj_id": self.obj_id,
-                        "v_obj_mps": r["gt_v_obj_mps"],
-                        "w_radps": r["gt_w_radps"],
-                    }
-                ]
-        atomic_write_text(seq / "scene_camera.json", _bop_json(cameras))
-        atomic_write_text(seq / "scene_gt.json", _bop_json(gts))
-        atomic_write_text(seq / "scene_gt_info.json", _bop_json(infos))
-        atomic_write_text(seq / "extras" / "scene_time.json", _bop_json(times))
-        if velocities:
-            atomic_write_text(seq / "extras" / "scene_gt_velocity.json", _bop_json(velocities))
         scene_id = int(s.sequence_name) if s.sequence_name.isdigit() else 0
-        for name in metadata["sets"]["pose"]:
-            rows = ["scene_id,im_id,obj_id,score,R,t,time"]
-            for r in records:
-                T = r["detector_poses"][name]
-                if T is not None:
-                    R, t = _r_t_mm(T)
-                    rows.append(
-                        f"{scene_id},{r['k']},{self.obj_id},1,"
-                        f"{' '.join(map(format_number, R))},{' '.join(map(format_number, t))},-1"
-                    )
-            atomic_write_text(seq / "extras" / "poses" / f"{name}.csv", "\n".join(rows) + "\n")
+        camera_path, gt_path = seq / "scene_camera.json", seq / "scene_gt.json"
+        info_path, time_path = seq / "scene_gt_info.json", seq / "extras" / "scene_time.json"
+        velocity_path = seq / "extras" / "scene_gt_velocity.json"
+        pose_paths = {n: seq / "extras" / "poses" / f"{n}.csv" for n in metadata["sets"]["pose"]}
+        with AtomicTextFiles() as out:
+
+            def entry(path: Path, k: int, value: Any) -> None:
+                """One line of a BOP JSON map (``{"k": value, ...}``, one image per line)."""
+                out.write(
+                    path,
+                    ("{\n" if k == 0 else ",\n") + f'  "{k}": {json.dumps(value, allow_nan=False)}',
+                )
+
+            for path in pose_paths.values():
+                out.write(path, "scene_id,im_id,obj_id,score,R,t,time\n")
+            for r in records():
+                k = r["k"]
+                R_w2c, t_w2c = _r_t_mm(invert_transform(np.asarray(r["T_world_cam"])))
+                entry(
+                    camera_path,
+                    k,
+                    {
+                        "cam_K": s.intrinsics.K.ravel().tolist(),
+                        "depth_scale": self.depth_scale_mm,
+                        "cam_R_w2c": R_w2c,
+                        "cam_t_w2c": t_w2c,
+                    },
+                )
+                gt = []
+                if r["gt_T_cam_obj"] is not None:
+                    R, t = _r_t_mm(r["gt_T_cam_obj"])
+                    gt = [{"cam_R_m2c": R, "cam_t_m2c": t, "obj_id": self.obj_id}]
+                entry(gt_path, k, gt)
+                entry(info_path, k, [r["gt_info"]] if r["gt_info"] is not None else [])
+                entry(time_path, k, {"t_s": r["t_s"]})
+                if r["gt_v_obj_mps"] is not None:
+                    velocity = {"v_obj_mps": r["gt_v_obj_mps"], "w_radps": r["gt_w_radps"]}
+                    entry(velocity_path, k, [{"obj_id": self.obj_id, **velocity}])
+                for name, path in pose_paths.items():
+                    T = r["detector_poses"][name]
+                    if T is not None:
+                        R, t = _r_t_mm(T)
+                        R_text, t_text = (
+                            " ".join(map(format_number, R)),
+                            " ".join(map(format_number, t)),
+                        )
+                        out.write(path, f"{scene_id},{k},{self.obj_id},1,{R_text},{t_text},-1\n")
+            for path in (camera_path, gt_path, info_path, time_path):
+                out.write(path, "\n}\n")
+            if metadata["ground_truth"]["velocities"]:
+                out.write(velocity_path, "\n}\n")
         for name in metadata["sets"]["mask"]:
             (seq / "extras" / "masks" / name).mkdir(parents=True, exist_ok=True)
         for name in metadata["sets"]["flow"]:
             (seq / "extras" / "flow" / name).mkdir(parents=True, exist_ok=True)
         atomic_write_text(self._metadata_path(), dumps_json(metadata))
-
-
-_IM_FILE = re.compile(r"^(\d+)\.(png|jpg|jpeg|tif)$")
 
 
 class BopSequence:
@@ -503,8 +517,8 @@ class BopSequence:
     def _rgb_at(self, k: int, shape: tuple[int, int] | None) -> U8:
         stem = f"{self._im_ids[k]:06d}"
         for ext in ("png", "jpg", "jpeg"):
-            path = self.path / "rgb" / f"{stem}.{ext}"
-            if path.is_file():
+            path = f"{self.path}/rgb/{stem}.{ext}"
+            if os.path.isfile(path):
                 break
         else:
             raise DatasetFormatError(
@@ -550,7 +564,7 @@ class BopSequence:
 
     def depth(self, k: int) -> F32:
         k = self._check_k(k)
-        path = self.path / "depth" / f"{self._im_ids[k]:06d}.png"
+        path = f"{self.path}/depth/{self._im_ids[k]:06d}.png"
         raw = decode_png_u16(read_file_bytes(path, "depth"), path, shape=self._intrinsics.shape)
         scale = self._cameras[k].get("depth_scale", 1.0)
         if not isinstance(scale, int | float) or not scale > 0:
@@ -570,12 +584,12 @@ class BopSequence:
         if self._check_k(k) == 0:
             return None
         stem = f"{self._im_ids[k]:06d}"
-        path = self.path / "extras" / "flow" / flow_set / f"{stem}.float"
+        path = f"{self.path}/extras/flow/{flow_set}/{stem}.float"
         flow_px, _ = decode_flow_float(read_file_bytes(path, "optical flow"), path)
         grid = flow_grid_px(flow_px.shape[0], flow_px.shape[1], self._intrinsics.shape, path)
-        valid_path = self.path / "extras" / "flow_valid" / flow_set / f"{stem}.png"
+        valid_path = f"{self.path}/extras/flow_valid/{flow_set}/{stem}.png"
         valid = None
-        if valid_path.is_file():
+        if os.path.isfile(valid_path):
             valid = decode_png_mask(
                 read_file_bytes(valid_path, "flow validity"), valid_path, shape=flow_px.shape[:2]
             )
@@ -603,11 +617,12 @@ class BopSequence:
             if idx is None:
                 return None
             folder = "mask_visib" if mask_set == GT_MASK_SET else "mask"
-            path = self.path / folder / f"{stem}_{idx:06d}.png"
+            path = f"{self.path}/{folder}/{stem}_{idx:06d}.png"
         else:
-            path = self.path / "extras" / "masks" / mask_set / f"{stem}.png"
+            path = f"{self.path}/extras/masks/{mask_set}/{stem}.png"
         try:
-            data = path.read_bytes()
+            with open(path, "rb") as f:
+                data = f.read()
         except FileNotFoundError:
             if mask_set in (GT_MASK_SET, GT_FULL_MASK_SET):
                 raise DatasetFormatError(f"mask file {located(path)} is missing") from None

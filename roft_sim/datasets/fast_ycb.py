@@ -16,14 +16,19 @@ from __future__ import annotations
 
 import os
 import re
-from collections.abc import Mapping
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from roft_sim.datasets.atomic_files import atomic_write_bytes, atomic_write_text
+from roft_sim.datasets.atomic_files import (
+    AtomicTextFiles,
+    atomic_write_bytes,
+    atomic_write_text,
+    remove_file,
+)
 from roft_sim.datasets.base import GT_MASK_SET, DetectorPoses
 from roft_sim.datasets.fast_ycb_codec import (
     decode_cam_k_json,
@@ -109,23 +114,23 @@ class FastYcbWriter(StreamingWriter):
         return self.sequence_path / "metadata.json"
 
     def _mask_path(self, mask_set: str, k: int) -> Path:
-        return self.sequence_path / "masks" / mask_set / f"{self.settings.object_name}_{k}.png"
+        return f"{self.sequence_path}/masks/{mask_set}/{self.settings.object_name}_{k}.png"
 
     def _write_frame_files(self, frame: DatasetFrame) -> dict[str, Any]:
         seq, k = self.sequence_path, frame.k
-        atomic_write_bytes(seq / "rgb" / f"{k}.png", encode_png_rgb(frame.rgb))
-        atomic_write_bytes(seq / "depth" / f"{k}.float", encode_depth_float(frame.depth_m))
+        atomic_write_bytes(f"{seq}/rgb/{k}.png", encode_png_rgb(frame.rgb))
+        atomic_write_bytes(f"{seq}/depth/{k}.float", encode_depth_float(frame.depth_m))
         for name, flow in frame.flows.items():
             encoding = self.settings.flow_encoding(name)
             atomic_write_bytes(
-                seq / "optical_flow" / name / f"{k}.float",
+                f"{seq}/optical_flow/{name}/{k}.float",
                 encode_flow_float(flow.flow_px, encoding),
             )
-            valid_path = seq / "optical_flow_valid" / name / f"{k}.png"
+            valid_path = f"{seq}/optical_flow_valid/{name}/{k}.png"
             if flow.valid is not None:
                 atomic_write_bytes(valid_path, encode_png_mask(flow.valid))
             else:
-                valid_path.unlink(missing_ok=True)
+                remove_file(valid_path)
         masks = {GT_MASK_SET: frame.gt_mask, GT_FULL_MASK_SET: frame.gt_mask_full}
         masks.update(frame.detector_masks)
         for name, mask in masks.items():
@@ -133,7 +138,7 @@ class FastYcbWriter(StreamingWriter):
             if mask is not None:
                 atomic_write_bytes(path, encode_png_mask(mask))
             else:
-                path.unlink(missing_ok=True)
+                remove_file(path)
         return {}
 
     def _write_model(self, model: ObjectModel) -> None:
@@ -162,35 +167,28 @@ class FastYcbWriter(StreamingWriter):
             "both in the object frame of the poses",
         }
 
-    def _assemble(self, records: list[dict[str, Any]], metadata: dict[str, Any]) -> None:
+    def _assemble(
+        self, records: Callable[[], Iterator[dict[str, Any]]], metadata: dict[str, Any]
+    ) -> None:
         seq, s = self.sequence_path, self.settings
-        atomic_write_text(seq / "cam_K.json", encode_cam_k_json(s.intrinsics))
-        atomic_write_text(
-            seq / "data.txt",
-            "".join(
-                encode_data_txt_row(r["t_s"], np.asarray(r["T_world_cam"])) + "\n" for r in records
-            ),
-        )
         gt = metadata["ground_truth"]
-        if gt["poses"]:
-            atomic_write_text(
-                seq / "gt" / "poses.txt",
-                "".join(
-                    format_row(pose_row_from_transform(np.asarray(r["gt_T_cam_obj"]))) + "\n"
-                    for r in records
-                ),
-            )
-        if gt["velocities"]:
-            atomic_write_text(
-                seq / "gt" / "velocities.txt",
-                "".join(format_row([*r["gt_v_obj_mps"], *r["gt_w_radps"]]) + "\n" for r in records),
-            )
-        for name in metadata["sets"]["pose"]:
-            rows = []
-            for r in records:
-                T = r["detector_poses"][name]
-                rows.append(_ZERO_POSE_ROW if T is None else format_row(pose_row_from_transform(T)))
-            atomic_write_text(seq / name / "poses.txt", "".join(row + "\n" for row in rows))
+        atomic_write_text(seq / "cam_K.json", encode_cam_k_json(s.intrinsics))
+        with AtomicTextFiles() as out:
+            for r in records():
+                row_text = encode_data_txt_row(r["t_s"], np.asarray(r["T_world_cam"]))
+                out.write(seq / "data.txt", row_text + "\n")
+                if gt["poses"]:
+                    row = pose_row_from_transform(np.asarray(r["gt_T_cam_obj"]))
+                    out.write(seq / "gt" / "poses.txt", format_row(row) + "\n")
+                if gt["velocities"]:
+                    row = [*r["gt_v_obj_mps"], *r["gt_w_radps"]]
+                    out.write(seq / "gt" / "velocities.txt", format_row(row) + "\n")
+                for name in metadata["sets"]["pose"]:
+                    T = r["detector_poses"][name]
+                    row_text = (
+                        _ZERO_POSE_ROW if T is None else format_row(pose_row_from_transform(T))
+                    )
+                    out.write(seq / name / "poses.txt", row_text + "\n")
         # Folders of sets that happen to hold no file (e.g. a detector that always missed).
         for name in metadata["sets"]["mask"]:
             (seq / "masks" / name).mkdir(parents=True, exist_ok=True)
@@ -323,11 +321,11 @@ class FastYcbSequence:
         return float(self._t_s[self._check_k(k)])
 
     def rgb(self, k: int) -> U8:
-        path = self.path / "rgb" / f"{self._check_k(k)}.png"
+        path = f"{self.path}/rgb/{self._check_k(k)}.png"
         return decode_png_rgb(read_file_bytes(path, "rgb"), path, shape=self._intrinsics.shape)
 
     def depth(self, k: int) -> F32:
-        path = self.path / "depth" / f"{self._check_k(k)}.float"
+        path = f"{self.path}/depth/{self._check_k(k)}.float"
         return decode_depth_float(
             read_file_bytes(path, "depth"), path, shape=self._intrinsics.shape
         )
@@ -341,12 +339,12 @@ class FastYcbSequence:
             raise KeyError(f"no flow set {flow_set!r} in {self.path}; sets: {self.flow_sets()}")
         if self._check_k(k) == 0:
             return None
-        path = self.path / "optical_flow" / flow_set / f"{k}.float"
+        path = f"{self.path}/optical_flow/{flow_set}/{k}.float"
         flow_px, _ = decode_flow_float(read_file_bytes(path, "optical flow"), path)
         grid = flow_grid_px(flow_px.shape[0], flow_px.shape[1], self._intrinsics.shape, path)
-        valid_path = self.path / "optical_flow_valid" / flow_set / f"{k}.png"
+        valid_path = f"{self.path}/optical_flow_valid/{flow_set}/{k}.png"
         valid = None
-        if valid_path.is_file():
+        if os.path.isfile(valid_path):
             valid = decode_png_mask(
                 read_file_bytes(valid_path, "flow validity"), valid_path, shape=flow_px.shape[:2]
             )
@@ -363,9 +361,10 @@ class FastYcbSequence:
     def mask(self, k: int, mask_set: str) -> Bool | None:
         if mask_set not in self.mask_sets():
             raise KeyError(f"no mask set {mask_set!r} in {self.path}; sets: {self.mask_sets()}")
-        path = self.path / "masks" / mask_set / f"{self._object_name}_{self._check_k(k)}.png"
+        path = f"{self.path}/masks/{mask_set}/{self._object_name}_{self._check_k(k)}.png"
         try:
-            data = path.read_bytes()
+            with open(path, "rb") as f:
+                data = f.read()
         except FileNotFoundError:
             return None  # a detector miss: no file
         return decode_png_mask(data, path, shape=self._intrinsics.shape)

@@ -21,10 +21,11 @@ The ``.h5`` therefore exists only when complete; a ``.parts`` folder marks an un
 
 from __future__ import annotations
 
+import contextlib
 import io
 import json
 import os
-from collections.abc import Mapping
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -52,6 +53,8 @@ __all__ = ["Hdf5Writer", "Hdf5Sequence", "HDF5_FORMAT_NAME", "HDF5_COMPRESSIONS"
 HDF5_FORMAT_NAME = "roft_sim-hdf5"
 """Value of the root attribute ``format`` of our files."""
 HDF5_COMPRESSIONS = ("gzip", "lzf")
+_ROW_BLOCK = 256
+"""Frames per block when finalize writes the small per-frame datasets (bounded buffers)."""
 _H5_ERRORS = (OSError, KeyError, ValueError, RuntimeError, TypeError, IndexError)
 
 
@@ -160,8 +163,11 @@ class Hdf5Writer(StreamingWriter):
                 f.create_dataset(
                     key, data=a[None], chunks=(1, *a.shape), **self._kw(shuffle=shuffle)
                 )
-        atomic_write_bytes(self.parts_dir / f"frame_{frame.k:06d}.h5", buffer.getvalue())
+        atomic_write_bytes(self._part_path(frame.k), buffer.getvalue())
         return {"arrays": {k: [str(a.dtype), list(a.shape)] for k, (a, _) in arrays.items()}}
+
+    def _part_path(self, k: int) -> str:
+        return os.path.join(self.parts_dir, f"frame_{k:06d}.h5")
 
     def _write_model(self, model: ObjectModel) -> None:
         buffer = io.BytesIO()
@@ -173,49 +179,68 @@ class Hdf5Writer(StreamingWriter):
         atomic_write_bytes(self.parts_dir / "model.h5", buffer.getvalue())
 
     # ---------------------------------------------------------------------- assembly
-    def _assemble(self, records: list[dict[str, Any]], metadata: dict[str, Any]) -> None:
-        s = self.settings
-        n = s.n_frames
-        h, w = s.intrinsics.shape
+    def _assemble(
+        self, records: Callable[[], Iterator[dict[str, Any]]], metadata: dict[str, Any]
+    ) -> None:
+        n = self.settings.n_frames
         layouts: dict[str, tuple[str, tuple[int, ...]]] = {}
-        for r in records:
+        for r in records():
             for key, (dtype, shape) in r["arrays"].items():
                 layouts.setdefault(key, (dtype, tuple(shape)))
+        gt = metadata["ground_truth"]
+        mask_sets = [GT_MASK_SET] if gt["masks"] else []
+        mask_sets += [GT_FULL_MASK_SET] if gt["full_masks"] else []
+        mask_sets += list(metadata["sets"]["mask"])
+        for name in mask_sets:  # a detector that missed on every frame still gets its dataset
+            layouts.setdefault(f"masks/{name}/mask", ("uint8", self.settings.intrinsics.shape))
         tmp = temp_path_for(self.sequence_path)
         try:
             with h5py.File(tmp, "w") as f:
-                self._write_root(f, records, metadata)
+                self._write_root_attributes(f, metadata)
+                rows = self._row_datasets(f, metadata, mask_sets, layouts)
                 targets = {}
                 for key, (dtype, shape) in sorted(layouts.items()):
-                    shuffle = dtype != "uint8"
                     targets[key] = f.create_dataset(
                         key,
                         shape=(n, *shape),
                         dtype=dtype,
                         chunks=(1, *shape),
                         fillvalue=0,
-                        **self._kw(shuffle=shuffle),
+                        **self._kw(shuffle=dtype != "uint8"),
                     )
                     _describe(targets[key], key, dtype)
-                for r in records:
+                buffers = [np.zeros((_ROW_BLOCK, *d.shape[1:]), d.dtype) for d, _ in rows]
+
+                def flush(end: int) -> None:
+                    start = (end - 1) // _ROW_BLOCK * _ROW_BLOCK
+                    for (dataset, _), buffer in zip(rows, buffers, strict=True):
+                        dataset[start:end] = buffer[: end - start]
+
+                for r in records():  # one frame at a time: flat memory
                     k = r["k"]
-                    with h5py.File(self.parts_dir / f"frame_{k:06d}.h5", "r") as part:
-                        for key in r["arrays"]:
-                            source = part[key]
-                            mask, chunk = source.id.read_direct_chunk((0,) * source.ndim)
-                            targets[key].id.write_direct_chunk(
-                                (k,) + (0,) * (source.ndim - 1), chunk, mask
-                            )
-                self._write_presence(f, records, layouts, metadata)
+                    for (_, value_of), buffer in zip(rows, buffers, strict=True):
+                        buffer[k % _ROW_BLOCK] = value_of(r)
+                    if (k + 1) % _ROW_BLOCK == 0 or k + 1 == self.settings.n_frames:
+                        flush(k + 1)
+                    if r["arrays"]:
+                        with h5py.File(self._part_path(k), "r") as part:
+                            for key in r["arrays"]:
+                                source = part[key]
+                                mask, chunk = source.id.read_direct_chunk((0,) * source.ndim)
+                                offset = (k,) + (0,) * (source.ndim - 1)
+                                targets[key].id.write_direct_chunk(offset, chunk, mask)
+                for name, info in metadata["sets"]["flow"].items():
+                    g = f.require_group(f"flow/{name}")
+                    g.attrs["grid_px"] = info["grid_px"]
+                    g.attrs["encoding"] = info["encoding"]
                 self._write_model_group(f)
             os.replace(tmp, self.sequence_path)
         except BaseException:
-            tmp.unlink(missing_ok=True)
+            with contextlib.suppress(FileNotFoundError):
+                os.remove(tmp)
             raise
 
-    def _write_root(
-        self, f: h5py.File, records: list[dict[str, Any]], metadata: dict[str, Any]
-    ) -> None:
+    def _write_root_attributes(self, f: h5py.File, metadata: dict[str, Any]) -> None:
         s = self.settings
         f.attrs["format"] = HDF5_FORMAT_NAME
         f.attrs["format_version"] = metadata["format_version"]
@@ -227,91 +252,75 @@ class Hdf5Writer(StreamingWriter):
         f.attrs["height_px"] = s.intrinsics.height_px
         f.attrs["K"] = s.intrinsics.K
         f.attrs["metadata_json"] = dumps_json(metadata)
-        _put(f, "time_s", np.array([r["t_s"] for r in records]), "s", "camera time stamp t_k")
-        _put(
-            f,
-            "T_world_cam",
-            np.array([r["T_world_cam"] for r in records]),
-            "m",
-            "camera pose in the world per frame (4x4, p_world = T p_cam)",
-        )
-        gt = metadata["ground_truth"]
-        if gt["poses"]:
-            _put(
-                f,
-                "gt/T_cam_obj",
-                np.array([r["gt_T_cam_obj"] for r in records]),
-                "m",
-                "ground-truth object pose in the OpenCV camera frame (4x4, p_cam = T p_obj)",
-            )
-        if gt["velocities"]:
-            _put(
-                f,
-                "gt/v_obj_mps",
-                np.array([r["gt_v_obj_mps"] for r in records]),
-                "m/s",
-                "velocity of the object origin, d/dt t_cam_obj, camera frame",
-            )
-            _put(
-                f,
-                "gt/w_radps",
-                np.array([r["gt_w_radps"] for r in records]),
-                "rad/s",
-                "angular velocity, camera frame: dR_cam_obj/dt = [w]x R_cam_obj",
-            )
-        for name in metadata["sets"]["pose"]:
-            poses = [r["detector_poses"][name] for r in records]
-            _put(
-                f,
-                f"poses/{name}/T_cam_obj",
-                np.array([np.eye(4) if T is None else T for T in poses]),
-                "m",
-                "detector object pose per frame (identity where valid = 0)",
-            )
-            _put(
-                f,
-                f"poses/{name}/valid",
-                np.array([T is not None for T in poses], np.uint8),
-                "",
-                "1 = the detector returned a pose on this frame, 0 = miss",
-            )
-        flow_sets = metadata["sets"]["flow"]
-        for name, info in flow_sets.items():
-            g = f.require_group(f"flow/{name}")
-            g.attrs["grid_px"] = info["grid_px"]
-            g.attrs["encoding"] = info["encoding"]
 
-    def _write_presence(
+    def _row_datasets(
         self,
         f: h5py.File,
-        records: list[dict[str, Any]],
-        layouts: Mapping[str, tuple[str, tuple[int, ...]]],
         metadata: dict[str, Any],
-    ) -> None:
+        mask_sets: list[str],
+        layouts: Mapping[str, tuple[str, tuple[int, ...]]],
+    ) -> list[tuple[h5py.Dataset, Callable[[dict[str, Any]], Any]]]:
+        """The small per-frame datasets, created empty, each with how to get its row from a
+        frame record."""
+        specs: list[tuple[str, tuple[int, ...], str, str, str, Callable]] = [
+            ("time_s", (), "f8", "s", "camera time stamp t_k", lambda r: r["t_s"]),
+            (
+                "T_world_cam", (4, 4), "f8", "m",
+                "camera pose in the world per frame (4x4, p_world = T p_cam)",
+                lambda r: r["T_world_cam"],
+            ),
+        ]  # fmt: skip
         gt = metadata["ground_truth"]
-        mask_sets = [GT_MASK_SET] if gt["masks"] else []
-        mask_sets += [GT_FULL_MASK_SET] if gt["full_masks"] else []
-        for name in mask_sets + list(metadata["sets"]["mask"]):
+        if gt["poses"]:
+            specs.append((
+                "gt/T_cam_obj", (4, 4), "f8", "m",
+                "ground-truth object pose in the OpenCV camera frame (4x4, p_cam = T p_obj)",
+                lambda r: r["gt_T_cam_obj"],
+            ))  # fmt: skip
+        if gt["velocities"]:
+            specs.append((
+                "gt/v_obj_mps", (3,), "f8", "m/s",
+                "velocity of the object origin, d/dt t_cam_obj, camera frame",
+                lambda r: r["gt_v_obj_mps"],
+            ))  # fmt: skip
+            specs.append((
+                "gt/w_radps", (3,), "f8", "rad/s",
+                "angular velocity, camera frame: dR_cam_obj/dt = [w]x R_cam_obj",
+                lambda r: r["gt_w_radps"],
+            ))  # fmt: skip
+        for name in metadata["sets"]["pose"]:
+            specs.append((
+                f"poses/{name}/T_cam_obj", (4, 4), "f8", "m",
+                "detector object pose per frame (identity where valid = 0)",
+                lambda r, n=name: np.eye(4) if r["detector_poses"][n] is None
+                else r["detector_poses"][n],
+            ))  # fmt: skip
+            specs.append((
+                f"poses/{name}/valid", (), "u1", "",
+                "1 = the detector returned a pose on this frame, 0 = miss",
+                lambda r, n=name: r["detector_poses"][n] is not None,
+            ))  # fmt: skip
+        for name in mask_sets:
             key = f"masks/{name}/mask"
-            if key not in layouts:  # a detector that missed on every frame
-                shape = self.settings.intrinsics.shape
-                f.create_dataset(
-                    key,
-                    shape=(len(records), *shape),
-                    dtype=np.uint8,
-                    chunks=(1, *shape),
-                    fillvalue=0,
-                    **self._kw(shuffle=False),
-                )
-                _describe(f[key], key, "uint8")
-            present = np.array([key in r["arrays"] for r in records], np.uint8)
-            _put(f, f"masks/{name}/present", present, "", "1 = a mask is stored for this frame")
+            specs.append((
+                f"masks/{name}/present", (), "u1", "", "1 = a mask is stored for this frame",
+                lambda r, key=key: key in r["arrays"],
+            ))  # fmt: skip
         for name in metadata["sets"]["flow"]:
             for leaf, flag in (("flow", "present"), ("valid", "valid_present")):
                 key = f"flow/{name}/{leaf}"
                 if key in layouts:
-                    present = np.array([key in r["arrays"] for r in records], np.uint8)
-                    _put(f, f"flow/{name}/{flag}", present, "", f"1 = {leaf} stored for frame")
+                    specs.append((
+                        f"flow/{name}/{flag}", (), "u1", "", f"1 = {leaf} stored for this frame",
+                        lambda r, key=key: key in r["arrays"],
+                    ))  # fmt: skip
+        rows = []
+        for key, tail, dtype, units, description, value_of in specs:
+            d = f.create_dataset(key, shape=(self.settings.n_frames, *tail), dtype=dtype)
+            d.attrs["units"] = units
+            d.attrs["description"] = description
+            rows.append((d, value_of))
+        return rows
 
     def _write_model_group(self, f: h5py.File) -> None:
         path = self.parts_dir / "model.h5"

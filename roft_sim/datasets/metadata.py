@@ -80,10 +80,11 @@ def dumps_json(data: Mapping[str, Any]) -> str:
         raise ValueError(f"metadata is not JSON-serialisable without NaN/inf: {e}") from None
 
 
-def read_json(path: Path, what: str) -> Any:
+def read_json(path: str | Path, what: str) -> Any:
     """Parses a JSON file; a missing file or bad JSON raises DatasetFormatError naming it."""
     try:
-        text = path.read_text(encoding="utf-8")
+        with open(path, encoding="utf-8") as f:
+            text = f.read()
     except FileNotFoundError:
         raise DatasetFormatError(f"{what} file {located(path)} is missing") from None
     except UnicodeDecodeError:

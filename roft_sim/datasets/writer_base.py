@@ -18,10 +18,11 @@ Writers hold no open files and pickle, so worker processes can share one (distin
 from __future__ import annotations
 
 import hashlib
+import os
 import re
 import shutil
 from abc import ABC, abstractmethod
-from collections.abc import Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar
@@ -196,9 +197,12 @@ class StreamingWriter(ABC):
         """Writes the frame's bulk files; returns extra record fields."""
 
     @abstractmethod
-    def _assemble(self, records: list[dict[str, Any]], metadata: dict[str, Any]) -> None:
-        """Writes the per-sequence files from all frame records (in frame order), and the
-        metadata LAST: its presence marks the sequence finished."""
+    def _assemble(
+        self, records: Callable[[], Iterator[dict[str, Any]]], metadata: dict[str, Any]
+    ) -> None:
+        """Writes the per-sequence files from the frame records (``records()`` streams them in
+        frame order, one at a time), and the metadata LAST: its presence marks the sequence
+        finished."""
 
     @abstractmethod
     def _write_model(self, model: ObjectModel) -> None:
@@ -258,7 +262,7 @@ class StreamingWriter(ABC):
         }
         record.update(self._write_frame_files(frame))
         self.parts_dir.mkdir(parents=True, exist_ok=True)
-        atomic_write_text(self.parts_dir / f"frame_{frame.k:06d}.json", dumps_json(record))
+        atomic_write_text(self._record_path(frame.k), dumps_json(record))
 
     def completed_frames(self) -> set[int]:
         """Frames whose record exists (all frames once finalized)."""
@@ -267,8 +271,8 @@ class StreamingWriter(ABC):
         if not self.parts_dir.is_dir():
             return set()
         done = set()
-        for p in self.parts_dir.iterdir():
-            m = _RECORD.match(p.name)
+        for name in os.listdir(self.parts_dir):  # strings: no per-frame Path objects
+            m = _RECORD.match(name)
             if m and int(m.group(1)) < self.settings.n_frames:
                 done.add(int(m.group(1)))
         return done
@@ -290,11 +294,8 @@ class StreamingWriter(ABC):
                 f"are missing ({format_frame_ranges(missing)}); write them (e.g. resume the "
                 "generator) and finalize again"
             )
-        records = [
-            read_json(self.parts_dir / f"frame_{k:06d}.json", "frame record") for k in range(n)
-        ]
-        summary = self._check_records(records)
-        self._assemble(records, self._metadata(summary))
+        summary = self._check_records(self._records())
+        self._assemble(self._records, self._metadata(summary))
         remove_temp_files(self.sequence_path if self.sequence_path.is_dir() else self.parts_dir)
         shutil.rmtree(self.parts_dir)
         self._finalized = True
@@ -311,64 +312,74 @@ class StreamingWriter(ABC):
                 f"settings ({', '.join(diff)} differ); use the original settings or start over"
             )
 
-    def _check_records(self, records: list[dict[str, Any]]) -> dict[str, Any]:
-        """Checks that frames agree on what they hold; returns a summary for metadata."""
+    def _record_path(self, k: int) -> str:
+        """Path of frame k's record (a string: see atomic_files.temp_path_for)."""
+        return os.path.join(self.parts_dir, f"frame_{k:06d}.json")
 
-        def uniform(key: str, value_of) -> Any:
-            values = [value_of(r) for r in records]
-            odd = [r["k"] for r, v in zip(records, values, strict=True) if v != values[0]]
-            if odd:
+    def _records(self) -> Iterator[dict[str, Any]]:
+        """The frame records in frame order, read one at a time (flat memory)."""
+        for k in range(self.settings.n_frames):
+            yield read_json(self._record_path(k), "frame record")
+
+    def _check_records(self, records: Iterator[dict[str, Any]]) -> dict[str, Any]:
+        """Checks, in one streaming pass, that frames agree on what they hold; returns a summary
+        for the metadata."""
+        checks: dict[str, Any] = {
+            "ground-truth poses": lambda r: r["gt_T_cam_obj"] is not None,
+            "ground-truth velocities": lambda r: r["gt_v_obj_mps"] is not None,
+            "ground-truth masks": lambda r: r["gt_mask"],
+            "full ground-truth masks": lambda r: r["gt_mask_full"],
+            "detector mask sets": lambda r: sorted(r["detector_masks"]),
+            "detector pose sets": lambda r: sorted(r["detector_poses"]),
+            "flow sets and grids": lambda r: {n: f["grid_px"] for n, f in r["flows"].items()},
+        }
+        first: dict[str, Any] = {}
+        odd: dict[str, list[int]] = {key: [] for key in checks}
+        previous_t = -np.inf
+        for r in records:
+            k = r["k"]
+            for key, value_of in checks.items():
+                value = value_of(r)
+                if key == "flow sets and grids" and k == 0:
+                    continue  # frame 0 has no flow
+                if key not in first:
+                    first[key] = value
+                elif value != first[key] and len(odd[key]) < 1000:
+                    odd[key].append(k)
+            if not r["t_s"] > previous_t:
+                raise DatasetFormatError(
+                    f"cannot finalize {located(self.sequence_path)}: time stamps must increase, "
+                    f"but t[{k}] = {r['t_s']} after t[{k - 1}] = {previous_t}"
+                )
+            previous_t = r["t_s"]
+        for key, frames in odd.items():
+            if frames:
+                where = "frame 1" if key == "flow sets and grids" else "frame 0"
                 raise DatasetFormatError(
                     f"cannot finalize {located(self.sequence_path)}: frames disagree on {key} "
-                    f"(frame 0: {values[0]!r}; different in frames {format_frame_ranges(odd)})"
+                    f"({where}: {first[key]!r}; different in frames {format_frame_ranges(frames)})"
                 )
-            return values[0]
-
-        has_pose = uniform("ground-truth poses", lambda r: r["gt_T_cam_obj"] is not None)
-        has_vel = uniform("ground-truth velocities", lambda r: r["gt_v_obj_mps"] is not None)
-        has_mask = uniform("ground-truth masks", lambda r: r["gt_mask"])
-        has_full = uniform("full ground-truth masks", lambda r: r["gt_mask_full"])
-        mask_sets = uniform("detector mask sets", lambda r: sorted(r["detector_masks"]))
-        pose_sets = uniform("detector pose sets", lambda r: sorted(r["detector_poses"]))
-        later = records[1:]
-        flow_grids: dict[str, int] = {}
-        if later:
-            values = [{n: f["grid_px"] for n, f in r["flows"].items()} for r in later]
-            odd = [r["k"] for r, v in zip(later, values, strict=True) if v != values[0]]
-            if odd:
-                raise DatasetFormatError(
-                    f"cannot finalize {located(self.sequence_path)}: frames disagree on flow "
-                    f"sets and grids (frame 1: {values[0]}; different in frames "
-                    f"{format_frame_ranges(odd)})"
-                )
-            flow_grids = values[0]
-            unknown = set(self.settings.flow_encodings) - set(flow_grids)
-            if unknown:
-                raise DatasetFormatError(
-                    f"cannot finalize {located(self.sequence_path)}: flow_encodings names sets "
-                    f"{sorted(unknown)} that no frame holds (frames hold {sorted(flow_grids)})"
-                )
-        times = np.array([r["t_s"] for r in records])
-        if len(times) > 1 and not (np.diff(times) > 0).all():
-            k = int(np.argmin(np.diff(times))) + 1
+        flow_grids: dict[str, int] = first.get("flow sets and grids", {})
+        unknown = set(self.settings.flow_encodings) - set(flow_grids)
+        if unknown and self.settings.n_frames > 1:
             raise DatasetFormatError(
-                f"cannot finalize {located(self.sequence_path)}: time stamps must increase, but "
-                f"t[{k}] = {times[k]} after t[{k - 1}] = {times[k - 1]}"
+                f"cannot finalize {located(self.sequence_path)}: flow_encodings names sets "
+                f"{sorted(unknown)} that no frame holds (frames hold {sorted(flow_grids)})"
             )
         return {
             "ground_truth": {
-                "poses": has_pose,
-                "velocities": has_vel,
-                "masks": has_mask,
-                "full_masks": has_full,
+                "poses": first["ground-truth poses"],
+                "velocities": first["ground-truth velocities"],
+                "masks": first["ground-truth masks"],
+                "full_masks": first["full ground-truth masks"],
             },
             "sets": {
                 "flow": {
                     name: {"encoding": self.settings.flow_encoding(name), "grid_px": grid}
                     for name, grid in sorted(flow_grids.items())
                 },
-                "mask": mask_sets,
-                "pose": pose_sets,
+                "mask": first["detector mask sets"],
+                "pose": first["detector pose sets"],
             },
         }
 

@@ -106,12 +106,21 @@ def test_missing_files(fast_ycb: Path):
 def test_corrupt_png(fast_ycb: Path):
     path = fast_ycb / "rgb" / "1.png"
     path.write_bytes(path.read_bytes()[:60])
-    with pytest.raises(DatasetFormatError, match=rf"rgb image file '{path}' is a corrupt"):
+    with pytest.raises(DatasetFormatError, match=rf"rgb image file '{path}' is truncated"):
         open_sequence(fast_ycb).rgb(1)
     mask = fast_ycb / "masks" / "gt" / "003_cracker_box_0.png"
     mask.write_bytes(b"GIF89a" + b"\0" * 30)
     with pytest.raises(DatasetFormatError, match=rf"mask file '{mask}' is not a PNG"):
         open_sequence(fast_ycb).mask(0, "gt")
+
+
+def test_png_with_a_damaged_chunk(fast_ycb: Path):
+    path = fast_ycb / "masks" / "gt" / "003_cracker_box_2.png"
+    data = bytearray(path.read_bytes())
+    data[45] ^= 0xFF  # inside the first IDAT chunk
+    path.write_bytes(bytes(data))
+    with pytest.raises(DatasetFormatError, match=r"is corrupt: CRC mismatch in chunk b'IDAT'"):
+        open_sequence(fast_ycb).mask(2, "gt")
 
 
 def test_nan_pose_row(fast_ycb: Path):

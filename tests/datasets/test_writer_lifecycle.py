@@ -70,7 +70,7 @@ def test_resume_after_an_interruption_gives_the_identical_dataset(
     real_write = writer_base_module.atomic_write_text
 
     def interrupted(path, text):
-        if path.name.startswith("frame_"):
+        if Path(path).name.startswith("frame_"):
             raise KeyboardInterrupt
         real_write(path, text)
 
@@ -197,7 +197,8 @@ def test_writer_checks_frame_index_and_resolution(tmp_path: Path):
 
 
 def test_memory_stays_flat_in_sequence_length(tmp_path: Path):
-    """Writing 3x more frames must not need 3x more Python heap (frames stream to disk)."""
+    """Writing 6x more frames needs no more Python heap (frames stream to disk)."""
+    import gc
     import tracemalloc
 
     seq = plate_sequence(n_frames=2, nvof=False)
@@ -208,6 +209,7 @@ def test_memory_stays_flat_in_sequence_length(tmp_path: Path):
             fmt, root, sequence_name="s", object_name="o", intrinsics=seq.intrinsics, fps=30,
             n_frames=n, metadata={}, object_model=None,
         )  # fmt: skip
+        gc.collect()
         tracemalloc.start()
         for k in range(n):
             base = frame0 if k == 0 else frame1
@@ -221,8 +223,9 @@ def test_memory_stays_flat_in_sequence_length(tmp_path: Path):
         return top
 
     for fmt in FORMATS:
-        short, long = peak(10, fmt, tmp_path / f"{fmt}10"), peak(30, fmt, tmp_path / f"{fmt}30")
-        assert long < 1.5 * short + 200_000, (fmt, short, long)
+        short, long = peak(10, fmt, tmp_path / f"{fmt}10"), peak(60, fmt, tmp_path / f"{fmt}60")
+        # < 2 kB per extra frame (a frame's arrays alone are ~40 kB, its record ~6 kB)
+        assert long - short < 100_000, (fmt, short, long)
 
 
 def test_frame_validation_messages():
