@@ -1,8 +1,7 @@
 """Shipped scenario files and the named presets of ``roft-sim generate --preset``.
 
-Every lookup of a shipped scenario file goes through :func:`shipped_scenarios_dir`, the one place
-that knows where they live (today the repository's ``scenarios/`` folder; when the files move into
-package data only this function changes).
+Every lookup of a shipped scenario file goes through :func:`shipped_scenarios_dir`, which asks
+:func:`roft_sim.shipped_files.scenarios_dir` (the package data folder ``roft_sim/scenarios/``).
 """
 
 from __future__ import annotations
@@ -12,6 +11,7 @@ from pathlib import Path
 from typing import Literal
 
 from roft_sim.errors import ConfigError
+from roft_sim.shipped_files import scenarios_dir
 
 __all__ = ["Preset", "PRESETS", "shipped_scenarios_dir", "preset_scenario_paths"]
 
@@ -20,15 +20,9 @@ def shipped_scenarios_dir() -> Path:
     """The folder of the scenario files shipped with roft_sim (``ci/``, ``fast_ycb/``, ...).
 
     Raises:
-        ConfigError: the folder is missing (an installation without the scenario files).
+        ConfigError: the folder is missing (a broken installation).
     """
-    path = Path(__file__).resolve().parents[2] / "scenarios"
-    if not path.is_dir():
-        raise ConfigError(
-            f"the shipped scenario folder {str(path)!r} is missing; reinstall roft-sim from its "
-            "source tree, or pass scenario files explicitly"
-        )
-    return path
+    return scenarios_dir()
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

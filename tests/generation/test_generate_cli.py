@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import re
 import shutil
+from pathlib import Path
 
 import pytest
 
@@ -79,4 +80,64 @@ def test_overwrite_keeps_the_output_when_a_later_check_fails(tmp_path, capsys):
     assert main(args) == 2
     assert (out / "keep.txt").exists()
     shutil.rmtree(out)
+    capsys.readouterr()
+
+
+def test_docs_describe_every_option_and_every_networks_key():
+    """docs/generate.md names every CLI option and every key of the [networks] table."""
+    import dataclasses
+
+    from roft_sim.sensors.flow_sources import FlowNoiseConfig
+    from roft_sim.sensors.networks import (
+        FlowSetConfig,
+        MaskSetConfig,
+        NetworksConfig,
+        PoseSetConfig,
+    )
+    from roft_sim.sensors.pose_estimator import PoseEstimatorConfig
+    from roft_sim.sensors.segmenter import SegmenterConfig
+
+    text = (Path(__file__).resolve().parents[2] / "docs" / "generate.md").read_text()
+    for action in _generate_parser()._actions:
+        for option in action.option_strings:
+            if option not in ("-h", "--help"):
+                assert f"`{option}" in text, option
+    for cls in (
+        NetworksConfig,
+        PoseSetConfig,
+        MaskSetConfig,
+        FlowSetConfig,
+        PoseEstimatorConfig,
+        SegmenterConfig,
+        FlowNoiseConfig,
+    ):
+        for f in dataclasses.fields(cls):
+            # as `key`, [networks.key], `key = ...`, or a `key` in a list of keys
+            assert re.search(rf"[`.\[]{f.name}[`\]\s=,]", text), (cls.__name__, f.name)
+
+
+@pytest.mark.slow
+@pytest.mark.render
+def test_fast_ycb_preset_writes_six_object_folders_that_pass_the_checker(tmp_path, capsys):
+    from roft_sim.datasets import check_fast_ycb_sequence, open_sequence
+
+    out = tmp_path / "fast_ycb"
+    args = ["generate", "--preset", "fast-ycb", "--out", str(out), "--frames", "3",
+            "--resolution", "160x90", "--no-progress"]  # fmt: skip
+    assert main(args) == 0
+    names = sorted(p.name for p in out.iterdir())
+    assert names == [
+        "003_cracker_box",
+        "004_sugar_box",
+        "005_tomato_soup_can",
+        "006_mustard_bottle",
+        "009_gelatin_box",
+        "010_potted_meat_can",
+    ]
+    for name in names:
+        assert check_fast_ycb_sequence(out / name) == [], name
+        seq = open_sequence(out / name)
+        assert seq.object_name == name and len(seq) == 3
+        assert seq.intrinsics.shape == (90, 160)
+        assert seq.metadata()["generator"]["preset"] == "fast-ycb"
     capsys.readouterr()
