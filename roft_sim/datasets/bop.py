@@ -575,6 +575,9 @@ class BopSequence:
         return (raw.astype(np.float64) * (float(scale) / 1000.0)).astype(np.float32)
 
     def flow_sets(self) -> tuple[str, ...]:
+        return self._cached_sets("flow", self._find_flow_sets)
+
+    def _find_flow_sets(self) -> tuple[str, ...]:
         d = self.path / "extras" / "flow"
         return tuple(sorted(p.name for p in d.iterdir() if p.is_dir())) if d.is_dir() else ()
 
@@ -596,6 +599,9 @@ class BopSequence:
         return FlowField(flow_px=flow_px, from_k=k - 1, to_k=k, grid_px=grid, valid=valid)
 
     def mask_sets(self) -> tuple[str, ...]:
+        return self._cached_sets("mask", self._find_mask_sets)
+
+    def _find_mask_sets(self) -> tuple[str, ...]:
         sets = []
         if (self.path / "mask_visib").is_dir():
             sets.append(GT_MASK_SET)
@@ -628,6 +634,13 @@ class BopSequence:
                 raise DatasetFormatError(f"mask file {located(path)} is missing") from None
             return None
         return decode_png_mask(data, path, shape=self._intrinsics.shape)
+
+    def _cached_sets(self, kind: str, find) -> tuple[str, ...]:
+        """Set names, listed once (a dataset does not change while it is read)."""
+        cache = self.__dict__.setdefault("_set_cache", {})
+        if kind not in cache:
+            cache[kind] = find()
+        return cache[kind]
 
     def pose_sets(self) -> tuple[str, ...]:
         d = self.path / "extras" / "poses"

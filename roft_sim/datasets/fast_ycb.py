@@ -331,6 +331,9 @@ class FastYcbSequence:
         )
 
     def flow_sets(self) -> tuple[str, ...]:
+        return self._cached_sets("flow", self._find_flow_sets)
+
+    def _find_flow_sets(self) -> tuple[str, ...]:
         d = self.path / "optical_flow"
         return tuple(sorted(p.name for p in d.iterdir() if p.is_dir())) if d.is_dir() else ()
 
@@ -351,6 +354,9 @@ class FastYcbSequence:
         return FlowField(flow_px=flow_px, from_k=k - 1, to_k=k, grid_px=grid, valid=valid)
 
     def mask_sets(self) -> tuple[str, ...]:
+        return self._cached_sets("mask", self._find_mask_sets)
+
+    def _find_mask_sets(self) -> tuple[str, ...]:
         d = self.path / "masks"
         if not d.is_dir():
             return ()
@@ -368,6 +374,13 @@ class FastYcbSequence:
         except FileNotFoundError:
             return None  # a detector miss: no file
         return decode_png_mask(data, path, shape=self._intrinsics.shape)
+
+    def _cached_sets(self, kind: str, find) -> tuple[str, ...]:
+        """Set names, listed once (a dataset does not change while it is read)."""
+        cache = self.__dict__.setdefault("_set_cache", {})
+        if kind not in cache:
+            cache[kind] = find()
+        return cache[kind]
 
     def pose_sets(self) -> tuple[str, ...]:
         return tuple(self._pose_files)

@@ -503,6 +503,9 @@ class Hdf5Sequence:
         return depth
 
     def flow_sets(self) -> tuple[str, ...]:
+        return self._cached_sets("flow", self._find_flow_sets)
+
+    def _find_flow_sets(self) -> tuple[str, ...]:
         return self._groups("flow")
 
     def flow(self, k: int, flow_set: str) -> FlowField | None:
@@ -529,6 +532,9 @@ class Hdf5Sequence:
         return FlowField(flow_px=flow, from_k=k - 1, to_k=k, grid_px=grid, valid=valid)
 
     def mask_sets(self) -> tuple[str, ...]:
+        return self._cached_sets("mask", self._find_mask_sets)
+
+    def _find_mask_sets(self) -> tuple[str, ...]:
         names = self._groups("masks")
         first = [n for n in (GT_MASK_SET, GT_FULL_MASK_SET) if n in names]
         return tuple(first + [n for n in names if n not in first])
@@ -542,6 +548,13 @@ class Hdf5Sequence:
             if not g["present"][k]:
                 return None
             return np.asarray(g["mask"][k]) != 0
+
+    def _cached_sets(self, kind: str, find) -> tuple[str, ...]:
+        """Set names, listed once (a dataset does not change while it is read)."""
+        cache = self.__dict__.setdefault("_set_cache", {})
+        if kind not in cache:
+            cache[kind] = find()
+        return cache[kind]
 
     def pose_sets(self) -> tuple[str, ...]:
         return self._groups("poses")

@@ -187,3 +187,18 @@ def test_flow_field_samples_like_roft_after_the_round_trip(tmp_path: Path):
     assert f.grid_px == 4 and f.flow_px.shape == (12, 16, 2)
     u, v = np.array([5, 63]), np.array([7, 47])
     np.testing.assert_array_equal(f.sample(u, v), f.flow_px[v // 4, u // 4])
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+def test_readers_implement_the_protocol_and_pickle(tmp_path: Path, fmt: str):
+    import pickle
+
+    from roft_sim.datasets import Sequence
+
+    seq = plate_sequence(n_frames=3)
+    back = open_sequence(write_sequence(seq, fmt, tmp_path))
+    assert isinstance(back, Sequence)
+    back.rgb(1)  # opens files (HDF5 keeps its file open)
+    clone = pickle.loads(pickle.dumps(back))
+    assert np.array_equal(clone.rgb(2), seq.rgb(2))
+    assert clone.flow_sets() == back.flow_sets() and clone.mask_sets() == back.mask_sets()
