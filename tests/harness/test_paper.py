@@ -1,0 +1,139 @@
+"""`roft-sim paper`: the rows, the findings check, the tables, and one full run (slow)."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from harness_cases import write_box_dataset
+
+from roft_sim.cli import main
+from roft_sim.errors import ConfigError
+from roft_sim.harness.paper import PAPER_ROWS, check_findings, paper_rows, plan_paper
+from roft_sim.report.paper_reference import ALL, paper_tables
+from roft_sim.trackers.roft import RoftConfig
+
+
+def _paper_results() -> dict:
+    """The paper's own Table IV (and Table II) numbers, as simulated results."""
+    paper = paper_tables()
+    results = {}
+    for row in PAPER_ROWS:
+        ref = paper.table4[row.label]
+        entry = dict(ref)
+        if row.label in paper.table2:
+            entry |= {m: v[ALL] for m, v in paper.table2[row.label].items()}
+        results[row.key] = {ALL: entry}
+    results["roft_no_mask_sync"][ALL] |= {
+        m: v[ALL] for m, v in paper.table2["ROFT w/o segm. sync."].items()
+    }
+    return results
+
+
+def test_rows_cover_every_table_iv_variant():
+    paper = paper_tables()
+    assert [r.label for r in PAPER_ROWS] == list(paper.table4)
+    assert {r.key for r in PAPER_ROWS if "I" in r.tables} == {"roft", "detector"}
+    assert {r.key for r in PAPER_ROWS if "II" in r.tables} == {"roft", "roft_no_mask_sync"}
+    keys = [r.key for r in paper_rows()]
+    assert "plugin:naive-delay" in keys and "plugin:pose-only-ukf" in keys
+    assert "plugin:roft" not in keys
+    with pytest.raises(ConfigError, match="unknown paper rows"):
+        paper_rows(["roft", "dope"])
+
+
+def test_the_paper_numbers_pass_the_findings_check():
+    findings = check_findings(_paper_results())
+    assert [f.holds for f in findings] == [True] * 5
+    assert "roft: add_auc_pct 76.59" in findings[0].evidence
+
+
+@pytest.mark.parametrize(
+    ("key", "metric", "value", "broken"),
+    [
+        ("detector", "rmse_a_deg", 10.0, 0),  # the detector beats ROFT on e_a
+        ("roft_no_outlier_rejection", "add_auc_pct", 40.0, 1),  # worse than w/o velocity
+        ("roft_no_mask_sync", "rmse_w_dps", 20.0, 2),  # mask sync no longer helps e_w
+        ("roft_no_pose_sync", "rmse_a_deg", 12.0, 3),  # pose sync no longer helps e_a
+        ("roft_gt_mask", "rmse_t_cm", 3.5, 4),  # a GT row worse than ROFT on e_t
+    ],
+)
+def test_each_finding_fails_when_its_numbers_say_so(key, metric, value, broken):
+    results = _paper_results()
+    results[key][ALL][metric] = value
+    holds = [f.holds for f in check_findings(results)]
+    assert holds[broken] is False
+    assert sum(h is False for h in holds) == 1
+
+
+def test_missing_rows_are_not_checked():
+    results = {k: v for k, v in _paper_results().items() if k in ("roft", "detector")}
+    holds = [f.holds for f in check_findings(results)]
+    assert holds == [True, None, None, None, None]
+
+
+def test_plan_uses_the_ablation_configs_and_the_paper_faults(tmp_path):
+    dataset = write_box_dataset(tmp_path, names=("box_a",))
+    rows = paper_rows(["roft", "roft_no_pose_sync", "roft_gt_mask_pose", "detector"])
+    cells = plan_paper(rows, [dataset / "box_a"], flow="stored:gt", seed=3)
+    by_label = {c.label: c for c in cells}
+    assert by_label["roft"].options.tracker_config == RoftConfig()
+    assert by_label["roft_no_pose_sync"].options.tracker_config.use_pose_resync is False
+    gt = by_label["roft_gt_mask_pose"].options
+    assert (gt.poses, gt.masks) == ("gt", "gt")
+    hold = by_label["detector"].options
+    assert hold.flow == "none" and hold.masks == "none" and hold.invalid == "exclude"
+    assert all(c.options.faults.name == "paper" and c.options.seed == 3 for c in cells)
+
+
+def test_paper_cli_on_a_reused_dataset(tmp_path, capsys):
+    dataset = write_box_dataset(tmp_path / "data")
+    out = tmp_path / "paper"
+    rows = "detector,detector_ideal,roft_no_velocity,roft_no_pose"
+    args = ["paper", "--out", str(out), "--reuse", str(dataset), "--rows", rows, "--no-plugins"]
+    assert main([*args, "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert [f["holds"] for f in summary["findings"]] == [None] * 5
+    tables = (out / "tables.md").read_text()
+    assert "## Table I" in tables and "## Table IV" in tables
+    assert "| DOPE | " in tables and "| ROFT w/o pose |" in tables
+    for name in ("table1_add_auc.csv", "table2.csv", "table4.csv", "tables.tex", "paper.json"):
+        assert (out / name).is_file(), name
+    record = json.loads((out / "paper.json").read_text())
+    assert set(record["results"]) == set(rows.split(","))
+    assert record["results"]["detector"]["analytic_box"]["frames"] > 0
+    # resumable: a second call reuses every cell
+    assert main([*args, "--resume", "--json"]) == 0
+    capsys.readouterr()
+    assert main([*args]) == 2
+    assert "not empty" in capsys.readouterr().err
+    assert (
+        main(["paper", "--out", str(tmp_path / "x"), "--reuse", str(dataset), "--frames", "9"]) == 2
+    )
+
+
+@pytest.mark.slow
+@pytest.mark.render
+def test_full_paper_run_at_640x480_with_short_sequences(tmp_path, capsys):
+    """The whole `roft-sim paper` path: generation of the six Fast-YCB-like sequences at 640x480
+    (24 frames each), every Table I/II/IV row and the plugins, the tables and the findings.
+
+    24 frames cover 3 pose arrivals per sequence, too few for the findings to be meaningful:
+    this checks that everything runs and is written, not the numbers (docs/paper.md has those).
+    """
+    out = tmp_path / "paper"
+    args = ["paper", "--out", str(out), "--resolution", "640x480", "--frames", "24"]
+    assert main([*args, "--workers", "2", "--no-progress", "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert len(summary["findings"]) == 5
+    assert all(f["holds"] in (True, False) for f in summary["findings"])
+    record = json.loads((out / "paper.json").read_text())
+    assert record["dataset"]["generated"] and record["dataset"]["frames_generated"] == 6 * 24
+    results = record["results"]
+    assert {r.key for r in paper_rows()} == set(results)
+    for key, entries in results.items():
+        # frames before a sequence's first detection are left out (invalid = exclude)
+        assert 0 < entries[ALL]["frames"] <= 6 * 24, key
+        assert set(entries) == {*paper_tables().objects, ALL}
+    table4 = (out / "table4.csv").read_text().splitlines()
+    assert len(table4) == 1 + len(PAPER_ROWS)
