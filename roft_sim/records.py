@@ -320,11 +320,14 @@ class ObjectModel:
     @property
     def diameter_m(self) -> float:
         """Largest distance between two model points [m] (exact over the model points)."""
-        from scipy.spatial import ConvexHull, distance
+        from scipy.spatial import ConvexHull, QhullError, distance
 
         pts = self.model_points_m
-        hull = pts[ConvexHull(pts).vertices] if len(pts) > 4 else pts
-        return float(distance.pdist(hull).max(initial=0.0))
+        try:  # the farthest pair lies on the convex hull; far fewer pairs to compare
+            candidates = pts[ConvexHull(pts).vertices] if len(pts) > 4 else pts
+        except QhullError:  # flat or collinear point sets have no 3-D hull
+            candidates = pts
+        return float(distance.pdist(candidates).max(initial=0.0))
 
 
 @runtime_checkable
