@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from scipy.ndimage import binary_closing, median_filter
+from scipy.ndimage import binary_closing, binary_erosion, median_filter
 
 from roft_sim.geometry.rigid_flow import object_and_static_motions, rigid_flow
 from roft_sim.records import FlowField, MaskDetection
@@ -15,6 +15,7 @@ from roft_sim.trackers.roft.mask_sync import (
     _dilate,
     _erode,
     _majority,
+    erode_pixels,
     warp_pixels,
 )
 
@@ -120,6 +121,17 @@ def test_growth_holes_are_filled_by_the_cleanup():
         for c in ("none", "close", "majority")
     ]
     assert holes[0] > 50 and holes[1] == 0 and holes[2] < holes[0] / 2
+
+
+@pytest.mark.parametrize("radius", [0, 1, 2, 4])
+def test_erosion_matches_scipy(radius):
+    rng = np.random.default_rng(radius)
+    m = rng.random((H, W)) < 0.8
+    m[:, :3] = True  # touches the image border: outside counts as not in the mask
+    expected = binary_erosion(m, np.ones((2 * radius + 1,) * 2, bool), border_value=0)
+    out = erode_pixels(PixelSet.from_mask(m), radius)
+    np.testing.assert_array_equal(out.to_mask(), expected if radius else m)
+    np.testing.assert_array_equal(out.v * W + out.u, out.index)
 
 
 def test_bad_cleanup_name():

@@ -336,10 +336,10 @@ def test_accuracy_with_ground_truth_flow_masks_and_poses(medium_seq):
     motion (RMS 1.4 m/s spatial velocity, 2.9 rad/s).
 
     Flow noise (320/1280)^2 px^2 and stride 5 stand for Fast-YCB's 1280x720 (see the velocity
-    KF test). Measured RMS over frames 6-59: position 1.71 cm, rotation 7.3 deg; velocity KF
-    20 cm/s and 24 deg/s. (ROFT's orientation comes mostly from integrating the flow's w, which
+    KF test). Measured RMS over frames 6-59: position 1.73 cm, rotation 7.5 deg; velocity KF
+    22 cm/s and 26 deg/s. (ROFT's orientation comes mostly from integrating the flow's w, which
     lags half a frame, against a pose gain of about 0.08: the paper's "ROFT w/ GT segm. and
-    pose" row has 2.5 cm and 10.6 deg.) Without pose sync: 4.05 cm, 8.6 deg.
+    pose" row has 2.5 cm and 10.6 deg.) Without pose sync: 4.05 cm, 8.8 deg.
     """
     seq = medium_seq
     n = len(seq)

@@ -34,7 +34,7 @@ from numpy.typing import NDArray
 from roft_sim.records import FlowField, MaskDetection
 from roft_sim.trackers.roft.config import MaskSyncConfig
 
-__all__ = ["PixelSet", "warp_pixels", "lookup_flow", "MaskSynchroniser", "MaskStep"]
+__all__ = ["PixelSet", "warp_pixels", "erode_pixels", "lookup_flow", "MaskSynchroniser", "MaskStep"]
 
 I64 = NDArray[np.int64]
 
@@ -168,6 +168,42 @@ def _majority(a: NDArray[np.bool_]) -> NDArray[np.bool_]:
     out[:, 1:] += rows[:, :-1]
     out[:, :-1] += rows[:, 1:]
     return out >= 5
+
+
+def erode_pixels(pixels: PixelSet, radius_px: int) -> PixelSet:
+    """Erosion by the (2r+1)^2 square: the pixels whose whole neighbourhood is in the mask
+    (pixels outside the image count as not in the mask).
+
+    Args:
+        pixels: the mask.
+        radius_px: r >= 0 [px]; 0 returns ``pixels`` itself.
+    """
+    if radius_px <= 0 or len(pixels) == 0:
+        return pixels
+    h, w = pixels.shape
+    r = radius_px
+    r0, c0 = int(pixels.v.min()) - 1, int(pixels.u.min()) - 1
+    rows = int(pixels.v.max()) - r0 + 2
+    cols = int(pixels.u.max()) - c0 + 2
+    a = np.zeros((rows, cols), dtype=bool)
+    a.reshape(-1)[(pixels.v - r0) * cols + (pixels.u - c0)] = True
+    out = a.copy()
+    for s in range(1, r + 1):  # separable: rows, then columns
+        out[s:, :] &= a[:-s, :]
+        out[:-s, :] &= a[s:, :]
+        out[:s, :] = False
+        out[-s:, :] = False
+    b = out.copy()
+    for s in range(1, r + 1):
+        out[:, s:] &= b[:, :-s]
+        out[:, :-s] &= b[:, s:]
+        out[:, :s] = False
+        out[:, -s:] = False
+    flat = np.flatnonzero(out)
+    rr = flat // cols
+    cc = flat - rr * cols + c0
+    rr += r0
+    return PixelSet(rr * w + cc, cc, rr, (h, w))
 
 
 CLEANUPS = ("none", "close", "majority")

@@ -42,7 +42,7 @@ from roft_sim.records import (
 )
 from roft_sim.trackers.base import TrackerContext
 from roft_sim.trackers.roft.config import RoftConfig
-from roft_sim.trackers.roft.mask_sync import MaskSynchroniser, PixelSet
+from roft_sim.trackers.roft.mask_sync import MaskSynchroniser, PixelSet, erode_pixels
 from roft_sim.trackers.roft.outlier_rejection import (
     DepthOutlierTest,
     DepthSamples,
@@ -78,9 +78,12 @@ class _Pose:
 
 @dataclass(slots=True)
 class _PreviousFrame:
+    """The last delivered camera frame, for the next flow measurement."""
+
     k: int
     t_s: float
     pixels: PixelSet | None
+    """Its synchronised mask, eroded by ``velocity.mask_erosion_px``."""
     depth_m: NDArray[np.floating]
 
 
@@ -109,6 +112,7 @@ class RoftTracker:
                 context.depth_renderer, context.intrinsics, config.outlier_rejection
             )
         self._mask_sync = MaskSynchroniser(config.mask, context.intrinsics.shape, self._horizon)
+        self._erosion_px = config.velocity.erosion_px(context.intrinsics.width_px)
         self._velocity_kf = VelocityKF(config.velocity)
         self.reset(None)
 
@@ -162,6 +166,8 @@ class RoftTracker:
                 )
                 if self._velocity_kf.step(meas):
                     used = len(meas)
+        if pixels is not None and self._erosion_px:
+            pixels = erode_pixels(pixels, self._erosion_px)
         self._previous = _PreviousFrame(obs.k, obs.t_s, pixels, obs.depth_m)
         return self._velocity_kf.x.copy(), used
 
