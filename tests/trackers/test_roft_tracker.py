@@ -434,6 +434,21 @@ def test_well_formed_after_every_step_under_random_fault_schedules(tiny_seq, dat
             _check_well_formed(e)
 
 
+def test_velocity_measurement_uses_the_eroded_mask(small_seq):
+    seq = small_seq
+    assert VelocityKFConfig().erosion_px(640) == 3 and VelocityKFConfig().erosion_px(64) == 0
+    assert VelocityKFConfig(mask_erosion_px=0).erosion_px(1280) == 0
+    masks = [Delivery(k, k, 1000 + k) for k in range(len(seq))]
+    obs = build_observations(seq, masks=masks)
+    used = {}
+    for r in (0, 2):
+        cfg = RoftConfig(velocity=VelocityKFConfig(mask_erosion_px=r, subsampling_stride=1))
+        est = run(RoftTracker(cfg, make_context(seq)), obs)
+        used[r] = np.array([e.diagnostics["flow_pixels"] for e in est[1:]])
+    # 2 px off a ~40x30 px silhouette: roughly a quarter of the pixels go
+    assert (used[2] < 0.85 * used[0]).all() and (used[2] > 0).all()
+
+
 def test_observations_must_come_in_order(tiny_seq):
     tracker = RoftTracker(TINY, make_context(tiny_seq))
     obs = build_observations(tiny_seq)
