@@ -350,6 +350,13 @@ def _run_in_pool(
                     raise _unit_failed(unit, jobs, e) from e
                 on_unit_done(unit, n)
         drain()
+    except BaseException:
+        # Stop now rather than after the units in flight: frames are atomic, so a worker
+        # stopped in the middle of one leaves no trace a resume would not repair.
+        # (ProcessPoolExecutor has no public terminate; _processes is stable since 3.8.)
+        for proc in list(getattr(executor, "_processes", {}).values()):
+            proc.terminate()
+        raise
     finally:
         executor.shutdown(wait=True, cancel_futures=True)
         progress.close()
@@ -422,7 +429,7 @@ def generate_dataset(
 
     def finalize(i: int) -> None:
         paths[i] = Path(jobs[i].writer.finalize())
-        _log.info("finished %s", paths[i])
+        _log.debug("finished %s", paths[i])
 
     def on_unit_done(unit: WorkUnit, n: int) -> None:
         generated[unit.sequence] += n

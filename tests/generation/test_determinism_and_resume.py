@@ -180,9 +180,11 @@ def test_generation_error_is_a_runtime_error_for_the_cli():
 
 
 @pytest.mark.slow
-def test_a_killed_cli_run_with_two_workers_resumes_to_the_same_bytes(tmp_path):
-    """SIGKILL to the whole process group of `roft-sim generate --workers 2` mid-run, then
-    `--resume`: the dataset equals an uninterrupted one-process run byte for byte."""
+@pytest.mark.parametrize("sig", ["SIGKILL", "SIGINT"])
+def test_a_killed_cli_run_with_two_workers_resumes_to_the_same_bytes(tmp_path, sig):
+    """SIGKILL (a crash) or SIGINT (Ctrl-C: exit 130) to the whole process group of
+    `roft-sim generate --workers 2` mid-run, then `--resume`: the dataset equals an
+    uninterrupted one-process run byte for byte."""
     import os
     import signal
     import subprocess
@@ -204,8 +206,9 @@ def test_a_killed_cli_run_with_two_workers_resumes_to_the_same_bytes(tmp_path):
             assert time.monotonic() < deadline, "no progress within 240 s"
             time.sleep(0.05)
     finally:
-        os.killpg(proc.pid, signal.SIGKILL)
-        proc.wait()
+        os.killpg(proc.pid, getattr(signal, sig))
+        code = proc.wait(timeout=60)
+    assert code == (130 if sig == "SIGINT" else -signal.SIGKILL)
     written = len(list(parts.glob("frame_*.json")))
     assert 4 <= written < 16
     assert main(["generate", str(_ci_file()), "--out", str(out), "--resume", *common]) == 0

@@ -122,7 +122,7 @@ def test_fast_ycb_preset_writes_six_object_folders_that_pass_the_checker(tmp_pat
     from roft_sim.datasets import check_fast_ycb_sequence, open_sequence
 
     out = tmp_path / "fast_ycb"
-    args = ["generate", "--preset", "fast-ycb", "--out", str(out), "--frames", "3",
+    args = ["generate", "--preset", "fast-ycb", "--out", str(out), "--frames", "12",
             "--resolution", "160x90", "--no-progress"]  # fmt: skip
     assert main(args) == 0
     names = sorted(p.name for p in out.iterdir())
@@ -137,7 +137,7 @@ def test_fast_ycb_preset_writes_six_object_folders_that_pass_the_checker(tmp_pat
     for name in names:
         assert check_fast_ycb_sequence(out / name) == [], name
         seq = open_sequence(out / name)
-        assert seq.object_name == name and len(seq) == 3
+        assert seq.object_name == name and len(seq) == 12
         assert seq.intrinsics.shape == (90, 160)
         assert seq.metadata()["generator"]["preset"] == "fast-ycb"
     capsys.readouterr()
