@@ -180,3 +180,64 @@ def test_format_layout_and_the_independent_fast_ycb_checker(generated):
         "rgb",
     ]
     assert len(list((path / "optical_flow" / "nvof_1_slow").iterdir())) == 3  # no file for k = 0
+
+
+def test_configured_flow_sources_and_disabled_networks(oracle, scenario, tmp_path):
+    """gt+noise == apply_flow_noise(gt, its noise, frame_rng(flow_set_seed, k-1, k));
+    nvof-like:gt == the sensors' NVOF-like reduction of gt; dis:fast == OpenCV DIS fast; a
+    disabled network writes no set."""
+    import dataclasses
+
+    from roft_sim.generation.sequence_generator import flow_set_seed
+    from roft_sim.sensors.flow_sources import (
+        DisFlowSource,
+        FlowNoiseConfig,
+        NvofLikeFlowSource,
+        apply_flow_noise,
+        frame_rng,
+    )
+    from roft_sim.sensors.networks import FlowSetConfig
+
+    noise = FlowNoiseConfig(sigma_px=0.7, outlier_fraction=0.05, hole_fraction=0.1)
+    networks = dataclasses.replace(
+        scenario.networks,
+        pose=dataclasses.replace(scenario.networks.pose, enabled=False),
+        mask=dataclasses.replace(scenario.networks.mask, enabled=False),
+        flow_sets=(
+            FlowSetConfig(set_name="noisy", source="gt+noise", noise=noise),
+            FlowSetConfig(set_name="nvof_gt", source="nvof-like:gt", encoding="s10.5"),
+            FlowSetConfig(set_name="dis_fast", source="dis:fast"),
+        ),
+    )
+    custom = dataclasses.replace(scenario, networks=networks)
+    (result,) = run_generate([custom], tmp_path, format="hdf5").sequences
+    seq = open_sequence(result.path)
+    assert seq.pose_sets() == () and set(seq.mask_sets()) == {GT_MASK_SET, GT_FULL_MASK_SET}
+    assert set(seq.flow_sets()) == {"noisy", "nvof_gt", "dis_fast"}
+
+    class Gt:  # the oracle's exact flow as a flow source
+        name = "gt"
+
+        def flow(self, _seq, from_k, to_k):
+            return oracle.gt_flows[to_k]
+
+    class Frames:
+        name, intrinsics = custom.name, custom.intrinsics
+
+        def __len__(self):
+            return custom.n_frames
+
+        def rgb(self, k):
+            return oracle.frames[k].rgb
+
+    seed = flow_set_seed(custom, "noisy")
+    for k in range(1, custom.n_frames):
+        want = apply_flow_noise(oracle.gt_flows[k], noise, frame_rng(seed, k - 1, k))
+        got = seq.flow(k, "noisy")
+        np.testing.assert_array_equal(got.flow_px, want.flow_px)
+        np.testing.assert_array_equal(got.valid, want.valid)
+        assert not np.array_equal(got.flow_px, oracle.gt_flows[k].flow_px)
+        want = NvofLikeFlowSource(Gt()).flow(Frames(), k - 1, k)
+        np.testing.assert_array_equal(seq.flow(k, "nvof_gt").flow_px, want.flow_px)
+        want = DisFlowSource("fast").flow(Frames(), k - 1, k)
+        np.testing.assert_array_equal(seq.flow(k, "dis_fast").flow_px, want.flow_px)
