@@ -1,0 +1,33 @@
+"""The CLI entry point: exit codes, help, logging that survives swapped stderr."""
+
+from __future__ import annotations
+
+import io
+import logging
+import subprocess
+import sys
+
+import pytest
+
+from roft_sim.cli import main
+
+
+def test_help_and_no_verb_exit_codes(capsys):
+    assert main(["--help"]) == 0
+    assert "trackers" in capsys.readouterr().out
+    assert main([]) == 2
+    assert main(["no-such-verb"]) == 2
+
+
+def test_logging_follows_the_current_stderr(monkeypatch):
+    assert main(["-q", "trackers"]) == 0
+    replaced = io.StringIO()
+    monkeypatch.setattr(sys, "stderr", replaced)
+    logging.getLogger("roft_sim.test").warning("after the swap")
+    assert "after the swap" in replaced.getvalue()
+
+
+@pytest.mark.parametrize("argv", [["-m", "roft_sim", "--version"]])
+def test_python_dash_m_runs_the_cli(argv):
+    out = subprocess.run([sys.executable, *argv], capture_output=True, text=True, check=True)
+    assert out.stdout.startswith("roft-sim ")
