@@ -48,9 +48,7 @@ from roft_sim.datasets.atomic_files import (
 )
 from roft_sim.datasets.base import GT_MASK_SET, DetectorPoses
 from roft_sim.datasets.fast_ycb_codec import (
-    decode_flow_float,
     encode_flow_float,
-    flow_grid_px,
     format_number,
 )
 from roft_sim.datasets.frames import GT_FULL_MASK_SET, DatasetFrame
@@ -72,6 +70,7 @@ from roft_sim.datasets.model_files import (
     write_mesh_ply_mm,
     write_points_xyz,
 )
+from roft_sim.datasets.reader_base import SequenceReaderBase, read_flow_field, subfolder_names
 from roft_sim.datasets.writer_base import StreamingWriter, WriterSettings
 from roft_sim.errors import ConfigError, DatasetFormatError, located
 from roft_sim.geometry.camera import CameraIntrinsics
@@ -354,7 +353,7 @@ class BopWriter(StreamingWriter):
         atomic_write_text(self._metadata_path(), dumps_json(metadata))
 
 
-class BopSequence:
+class BopSequence(SequenceReaderBase):
     """One BOP scene read lazily as a sequence of one object (implements ``Sequence``).
 
     Works on scenes we wrote and on BOP datasets from elsewhere (one object per sequence: pick
@@ -387,6 +386,7 @@ class BopSequence:
         self._metadata: dict[str, Any] = (
             read_json(meta_path, "metadata") if meta_path.is_file() else {}
         )
+        self._name = str(self._metadata.get("sequence_name", self.path.name))
         cam_path = self.path / "scene_camera.json"
         cameras = self._json_by_id(cam_path, "scene camera")
         if not cameras:
@@ -509,11 +509,6 @@ class BopSequence:
                 return idx
         return None
 
-    def _check_k(self, k: int) -> int:
-        if not 0 <= k < len(self._im_ids):
-            raise IndexError(f"frame {k} is outside 0..{len(self) - 1} of {located(self.path)}")
-        return int(k)
-
     def _rgb_at(self, k: int, shape: tuple[int, int] | None) -> U8:
         stem = f"{self._im_ids[k]:06d}"
         for ext in ("png", "jpg", "jpeg"):
@@ -537,28 +532,6 @@ class BopSequence:
         return np.ascontiguousarray(image[..., ::-1])
 
     # ------------------------------------------------------------------------ Sequence
-    @property
-    def name(self) -> str:
-        return str(self._metadata.get("sequence_name", self.path.name))
-
-    @property
-    def object_name(self) -> str:
-        return self._object_name
-
-    @property
-    def intrinsics(self) -> CameraIntrinsics:
-        return self._intrinsics
-
-    @property
-    def fps(self) -> int:
-        return self._fps
-
-    def __len__(self) -> int:
-        return len(self._im_ids)
-
-    def time_s(self, k: int) -> float:
-        return float(self._t_s[self._check_k(k)])
-
     def rgb(self, k: int) -> U8:
         return self._rgb_at(self._check_k(k), self._intrinsics.shape)
 
@@ -578,8 +551,7 @@ class BopSequence:
         return self._cached_sets("flow", self._find_flow_sets)
 
     def _find_flow_sets(self) -> tuple[str, ...]:
-        d = self.path / "extras" / "flow"
-        return tuple(sorted(p.name for p in d.iterdir() if p.is_dir())) if d.is_dir() else ()
+        return subfolder_names(self.path / "extras" / "flow")
 
     def flow(self, k: int, flow_set: str) -> FlowField | None:
         if flow_set not in self.flow_sets():
@@ -587,16 +559,12 @@ class BopSequence:
         if self._check_k(k) == 0:
             return None
         stem = f"{self._im_ids[k]:06d}"
-        path = f"{self.path}/extras/flow/{flow_set}/{stem}.float"
-        flow_px, _ = decode_flow_float(read_file_bytes(path, "optical flow"), path)
-        grid = flow_grid_px(flow_px.shape[0], flow_px.shape[1], self._intrinsics.shape, path)
-        valid_path = f"{self.path}/extras/flow_valid/{flow_set}/{stem}.png"
-        valid = None
-        if os.path.isfile(valid_path):
-            valid = decode_png_mask(
-                read_file_bytes(valid_path, "flow validity"), valid_path, shape=flow_px.shape[:2]
-            )
-        return FlowField(flow_px=flow_px, from_k=k - 1, to_k=k, grid_px=grid, valid=valid)
+        return read_flow_field(
+            f"{self.path}/extras/flow/{flow_set}/{stem}.float",
+            f"{self.path}/extras/flow_valid/{flow_set}/{stem}.png",
+            k,
+            self._intrinsics.shape,
+        )
 
     def mask_sets(self) -> tuple[str, ...]:
         return self._cached_sets("mask", self._find_mask_sets)
@@ -634,13 +602,6 @@ class BopSequence:
                 raise DatasetFormatError(f"mask file {located(path)} is missing") from None
             return None
         return decode_png_mask(data, path, shape=self._intrinsics.shape)
-
-    def _cached_sets(self, kind: str, find) -> tuple[str, ...]:
-        """Set names, listed once (a dataset does not change while it is read)."""
-        cache = self.__dict__.setdefault("_set_cache", {})
-        if kind not in cache:
-            cache[kind] = find()
-        return cache[kind]
 
     def pose_sets(self) -> tuple[str, ...]:
         d = self.path / "extras" / "poses"

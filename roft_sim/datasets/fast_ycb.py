@@ -33,12 +33,10 @@ from roft_sim.datasets.base import GT_MASK_SET, DetectorPoses
 from roft_sim.datasets.fast_ycb_codec import (
     decode_cam_k_json,
     decode_depth_float,
-    decode_flow_float,
     encode_cam_k_json,
     encode_data_txt_row,
     encode_depth_float,
     encode_flow_float,
-    flow_grid_px,
     format_row,
     parse_rows,
     pose_row_from_transform,
@@ -59,9 +57,9 @@ from roft_sim.datasets.model_files import (
     write_mesh_obj,
     write_points_xyz,
 )
+from roft_sim.datasets.reader_base import SequenceReaderBase, read_flow_field, subfolder_names
 from roft_sim.datasets.writer_base import StreamingWriter, WriterSettings
 from roft_sim.errors import DatasetFormatError, located
-from roft_sim.geometry.camera import CameraIntrinsics
 from roft_sim.records import FlowField, ObjectModel, PoseTrack
 
 F64 = NDArray[np.float64]
@@ -197,7 +195,7 @@ class FastYcbWriter(StreamingWriter):
         atomic_write_text(self._metadata_path(), dumps_json(metadata))
 
 
-class FastYcbSequence:
+class FastYcbSequence(SequenceReaderBase):
     """A Fast-YCB sequence folder read lazily (implements :class:`roft_sim.datasets.Sequence`).
 
     Images are read frame by frame; text files (poses, velocities) are read whole on first use.
@@ -243,6 +241,7 @@ class FastYcbSequence:
         self._T_world_cam, _ = transforms_from_pose_rows(
             rows, data_path, allow_zero_rows=True, t_col=2
         )
+        self._name = self.path.name
         self._object_name = object_name or self._find_object_name()
         self._fps = fps or self._find_fps()
         self._pose_files = self._find_pose_files()
@@ -292,34 +291,7 @@ class FastYcbSequence:
                     files.setdefault(d.name + variant, f)
         return files
 
-    def _check_k(self, k: int) -> int:
-        if not 0 <= k < len(self):
-            raise IndexError(f"frame {k} is outside 0..{len(self) - 1} of {located(self.path)}")
-        return int(k)
-
     # ------------------------------------------------------------------------ Sequence
-    @property
-    def name(self) -> str:
-        return self.path.name
-
-    @property
-    def object_name(self) -> str:
-        return self._object_name
-
-    @property
-    def intrinsics(self) -> CameraIntrinsics:
-        return self._intrinsics
-
-    @property
-    def fps(self) -> int:
-        return self._fps
-
-    def __len__(self) -> int:
-        return len(self._t_s)
-
-    def time_s(self, k: int) -> float:
-        return float(self._t_s[self._check_k(k)])
-
     def rgb(self, k: int) -> U8:
         path = f"{self.path}/rgb/{self._check_k(k)}.png"
         return decode_png_rgb(read_file_bytes(path, "rgb"), path, shape=self._intrinsics.shape)
@@ -334,24 +306,19 @@ class FastYcbSequence:
         return self._cached_sets("flow", self._find_flow_sets)
 
     def _find_flow_sets(self) -> tuple[str, ...]:
-        d = self.path / "optical_flow"
-        return tuple(sorted(p.name for p in d.iterdir() if p.is_dir())) if d.is_dir() else ()
+        return subfolder_names(self.path / "optical_flow")
 
     def flow(self, k: int, flow_set: str) -> FlowField | None:
         if flow_set not in self.flow_sets():
             raise KeyError(f"no flow set {flow_set!r} in {self.path}; sets: {self.flow_sets()}")
         if self._check_k(k) == 0:
             return None
-        path = f"{self.path}/optical_flow/{flow_set}/{k}.float"
-        flow_px, _ = decode_flow_float(read_file_bytes(path, "optical flow"), path)
-        grid = flow_grid_px(flow_px.shape[0], flow_px.shape[1], self._intrinsics.shape, path)
-        valid_path = f"{self.path}/optical_flow_valid/{flow_set}/{k}.png"
-        valid = None
-        if os.path.isfile(valid_path):
-            valid = decode_png_mask(
-                read_file_bytes(valid_path, "flow validity"), valid_path, shape=flow_px.shape[:2]
-            )
-        return FlowField(flow_px=flow_px, from_k=k - 1, to_k=k, grid_px=grid, valid=valid)
+        return read_flow_field(
+            f"{self.path}/optical_flow/{flow_set}/{k}.float",
+            f"{self.path}/optical_flow_valid/{flow_set}/{k}.png",
+            k,
+            self._intrinsics.shape,
+        )
 
     def mask_sets(self) -> tuple[str, ...]:
         return self._cached_sets("mask", self._find_mask_sets)
@@ -374,13 +341,6 @@ class FastYcbSequence:
         except FileNotFoundError:
             return None  # a detector miss: no file
         return decode_png_mask(data, path, shape=self._intrinsics.shape)
-
-    def _cached_sets(self, kind: str, find) -> tuple[str, ...]:
-        """Set names, listed once (a dataset does not change while it is read)."""
-        cache = self.__dict__.setdefault("_set_cache", {})
-        if kind not in cache:
-            cache[kind] = find()
-        return cache[kind]
 
     def pose_sets(self) -> tuple[str, ...]:
         return tuple(self._pose_files)

@@ -38,6 +38,7 @@ from roft_sim.datasets.base import GT_MASK_SET, DetectorPoses
 from roft_sim.datasets.fast_ycb_codec import S10_5_SCALE
 from roft_sim.datasets.frames import GT_FULL_MASK_SET, DatasetFrame
 from roft_sim.datasets.metadata import dumps_json
+from roft_sim.datasets.reader_base import SequenceReaderBase
 from roft_sim.datasets.writer_base import StreamingWriter, WriterSettings
 from roft_sim.errors import ConfigError, DatasetFormatError, located
 from roft_sim.geometry.camera import CameraIntrinsics
@@ -364,7 +365,7 @@ def _describe(d: h5py.Dataset, key: str, dtype: str) -> None:
     d.attrs["description"] = description
 
 
-class Hdf5Sequence:
+class Hdf5Sequence(SequenceReaderBase):
     """A sequence in one of our HDF5 files, read lazily (implements ``Sequence``).
 
     The file is opened on first use and kept open; the object pickles (it reopens the file in
@@ -456,39 +457,12 @@ class Hdf5Sequence:
             raise DatasetFormatError(f"{located(self.path)}: /{key} holds NaN/inf values")
         return data
 
-    def _check_k(self, k: int) -> int:
-        if not 0 <= k < self._n:
-            raise IndexError(f"frame {k} is outside 0..{self._n - 1} of {located(self.path)}")
-        return int(k)
-
     def _groups(self, key: str) -> tuple[str, ...]:
         with self._guard(f"/{key}"):
             f = self._h5()
             return tuple(sorted(f[key].keys())) if key in f else ()
 
     # ------------------------------------------------------------------------ Sequence
-    @property
-    def name(self) -> str:
-        return self._name
-
-    @property
-    def object_name(self) -> str:
-        return self._object_name
-
-    @property
-    def intrinsics(self) -> CameraIntrinsics:
-        return self._intrinsics
-
-    @property
-    def fps(self) -> int:
-        return self._fps
-
-    def __len__(self) -> int:
-        return self._n
-
-    def time_s(self, k: int) -> float:
-        return float(self._t_s[self._check_k(k)])
-
     def rgb(self, k: int) -> U8:
         k = self._check_k(k)
         with self._guard(f"/rgb frame {k}"):
@@ -548,13 +522,6 @@ class Hdf5Sequence:
             if not g["present"][k]:
                 return None
             return np.asarray(g["mask"][k]) != 0
-
-    def _cached_sets(self, kind: str, find) -> tuple[str, ...]:
-        """Set names, listed once (a dataset does not change while it is read)."""
-        cache = self.__dict__.setdefault("_set_cache", {})
-        if kind not in cache:
-            cache[kind] = find()
-        return cache[kind]
 
     def pose_sets(self) -> tuple[str, ...]:
         return self._groups("poses")
