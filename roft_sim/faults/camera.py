@@ -81,11 +81,10 @@ def _ellipses(
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
-class DepthHoles:
-    """Elliptical holes (depth 0 = no measurement) in hit frames: 1..``max_count`` holes with
-    semi-axes ``min_radius_px..max_radius_px``."""
+class _EllipticalHoles:
+    """Settings shared by the hole faults: bursts of frames with 1..``max_count`` elliptical
+    holes of semi-axes ``min_radius_px..max_radius_px`` image pixels."""
 
-    kind: Literal["depth_holes"] = "depth_holes"
     p: float = 0.1
     """Probability per camera frame that a burst starts [-]."""
     burst_frames: int = 1
@@ -108,6 +107,14 @@ class DepthHoles:
 
     def draw_frames(self, n_frames: int, rng: np.random.Generator) -> list[Params | None]:
         return _draw_seeded(self, n_frames, rng)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class DepthHoles(_EllipticalHoles):
+    """Elliptical holes (depth 0 = no measurement) in hit frames: 1..``max_count`` holes with
+    semi-axes ``min_radius_px..max_radius_px``."""
+
+    kind: Literal["depth_holes"] = "depth_holes"
 
     def apply_depth(self, depth_m: F32, params: Params) -> F32:
         """(H, W) float32 depth [m] with holes set to 0 (a new array)."""
@@ -187,33 +194,11 @@ class FlowNoise:
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
-class FlowHoles:
+class FlowHoles(_EllipticalHoles):
     """Elliptical regions of hit frames' flow marked invalid (``FlowField.valid`` False);
     1..``max_count`` holes with semi-axes ``min_radius_px..max_radius_px`` image pixels."""
 
     kind: Literal["flow_holes"] = "flow_holes"
-    p: float = 0.1
-    """Probability per camera frame that a burst starts [-]."""
-    burst_frames: int = 1
-    """Frames each burst lasts, >= 1."""
-    max_count: int = 3
-    """Most holes per frame, >= 1."""
-    min_radius_px: int = 5
-    """Smallest hole semi-axis [image px], >= 1."""
-    max_radius_px: int = 30
-    """Largest hole semi-axis [image px]."""
-    stage: ClassVar[str] = "frame"
-
-    def __post_init__(self) -> None:
-        _check_occurrence(self.p, self.burst_frames)
-        if self.max_count < 1:
-            raise ConfigError(f"max_count must be >= 1, got {self.max_count}")
-        check_int_range(
-            "min_radius_px", self.min_radius_px, "max_radius_px", self.max_radius_px, minimum=1
-        )
-
-    def draw_frames(self, n_frames: int, rng: np.random.Generator) -> list[Params | None]:
-        return _draw_seeded(self, n_frames, rng)
 
     def apply_flow(self, flow: FlowField, params: Params) -> FlowField:
         rng = np.random.default_rng(params["seed"])
