@@ -63,7 +63,9 @@ def main() -> None:
         help="comma-separated trackers",
     )
     parser.add_argument("--faults", default="paper")
-    parser.add_argument("--flow", default="auto")
+    parser.add_argument(
+        "--flow", help="flow source (default: stored:gt in memory, auto for a dataset)"
+    )
     parser.add_argument("--repeats", type=int, default=3)
     args = parser.parse_args()
 
@@ -82,6 +84,7 @@ def main() -> None:
         sequence = open_sequence(args.dataset)
         renderer = None
         poses, masks = "auto", "auto"
+        flow = args.flow or "auto"
         label = f"{args.dataset} ({len(sequence)} frames)"
     else:
         from roft_sim.testing.analytic_scene import (
@@ -94,11 +97,12 @@ def main() -> None:
         sequence = analytic_box_sequence(n_frames=args.frames, intrinsics=default_intrinsics(w, h))
         renderer = lambda model: AnalyticBoxDepthRenderer()  # noqa: E731
         poses, masks = "gt", "gt"
+        flow = args.flow or "stored:gt"
         label = f"analytic box {w}x{h} in memory ({args.frames} frames)"
     base = RunOptions(
-        tracker="noop", faults=load_faults(args.faults), flow=args.flow, poses=poses, masks=masks
+        tracker="noop", faults=load_faults(args.faults), flow=flow, poses=poses, masks=masks
     )
-    print(f"{label}, faults {args.faults}, flow {args.flow}, {args.repeats} repeats")
+    print(f"{label}, faults {args.faults}, flow {flow}, {args.repeats} repeats")
 
     loads, rest = [], []
     for _ in range(args.repeats):

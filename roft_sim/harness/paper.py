@@ -275,89 +275,94 @@ def _fmt(x: float | None) -> str:
 
 
 def check_findings(results: dict[str, RowMetrics]) -> list[Finding]:
-    """The paper's qualitative findings (issue 7's 'done means') against ``results`` (ALL)."""
-    findings = []
+    """The paper's qualitative findings (issue 7's 'done means') against ``results`` (ALL).
 
-    def better(a: str, b: str, metric: str) -> bool | None:
-        x, y = _all(results, a, metric), _all(results, b, metric)
-        if x is None or y is None:
-            return None
-        return x > y if metric == "add_auc_pct" else x < y
-
+    Each finding is a list of comparisons; it holds when all hold, is None when a row it needs
+    is missing, and its evidence lists the numbers and the comparisons that fail.
+    """
     pose_metrics = ("add_auc_pct", "rmse_t_cm", "rmse_a_deg")
+    velocity_metrics = ("rmse_v_cmps", "rmse_w_dps")
 
-    def evidence(keys: Sequence[str], metrics: Sequence[str] = pose_metrics) -> str:
-        return "; ".join(
+    def better(a: str, b: str, metric: str) -> tuple[str, bool | None]:
+        x, y = _all(results, a, metric), _all(results, b, metric)
+        verdict = None if x is None or y is None else (x > y if metric == "add_auc_pct" else x < y)
+        return f"{a} better than {b} on {metric}", verdict
+
+    def worst_two(metric: str) -> tuple[str, bool | None]:
+        rows = [k for k in _ABLATION_ROWS if _all(results, k, metric) is not None]
+        if not {"roft_no_velocity", "roft_no_pose"} <= set(rows) or len(rows) < 3:
+            return f"worst two on {metric}", None
+        order = sorted(
+            rows, key=lambda k: _all(results, k, metric), reverse=metric != "add_auc_pct"
+        )  # type: ignore[arg-type, return-value]
+        worst = set(order[:2])
+        return f"worst two on {metric} are {sorted(worst)}", worst == {
+            "roft_no_velocity",
+            "roft_no_pose",
+        }
+
+    def finding(
+        claim: str,
+        checks: list[tuple[str, bool | None]],
+        keys: Sequence[str],
+        metrics: Sequence[str],
+    ) -> Finding:
+        verdicts = [v for _, v in checks]
+        holds = None if None in verdicts else all(verdicts)  # type: ignore[arg-type]
+        numbers = "; ".join(
             f"{k}: " + ", ".join(f"{m} {_fmt(_all(results, k, m))}" for m in metrics) for k in keys
         )
+        failed = [text for text, v in checks if v is False]
+        evidence = numbers + (f". Fails: {'; '.join(failed)}" if failed else "")
+        return Finding(claim=claim, holds=holds, evidence=evidence)
 
-    verdicts = [better("roft", "detector", m) for m in pose_metrics]
-    findings.append(
-        Finding(
-            claim="ROFT beats the 5 fps detector (DOPE) on ADD-AUC, e_t and e_a",
-            holds=None if None in verdicts else all(verdicts),  # type: ignore[arg-type]
-            evidence=evidence(["roft", "detector"]),
-        )
-    )
-    ablations = [
-        "roft",
-        "roft_no_pose_sync",
-        "roft_no_outlier_rejection",
-        "roft_no_mask_sync",
-        "roft_no_velocity",
-        "roft_no_pose",
-    ]
-    present = [k for k in ablations if _all(results, k, "add_auc_pct") is not None]
-    worst_ok: bool | None = None
-    if {"roft_no_velocity", "roft_no_pose"} <= set(present) and len(present) > 2:
-        worst_ok = True
-        for m in pose_metrics:
-            values = {k: _all(results, k, m) for k in present}
-            order = sorted(
-                (k for k in present if values[k] is not None),
-                key=lambda k: values[k],  # type: ignore[arg-type, return-value]
-                reverse=(m != "add_auc_pct"),
-            )
-            worst_ok &= set(order[:2]) == {"roft_no_velocity", "roft_no_pose"}
-    findings.append(
-        Finding(
-            claim="in the ablation, removing velocity or pose is worst (the two worst rows on "
-            "ADD-AUC, e_t and e_a)",
-            holds=worst_ok,
-            evidence=evidence(present),
-        )
-    )
-    mask = [
-        better("roft", "roft_no_mask_sync", m) for m in (*pose_metrics, "rmse_v_cmps", "rmse_w_dps")
-    ]
-    findings.append(
-        Finding(
-            claim="removing mask sync hurts clearly (worse ADD-AUC, e_t, e_a, e_v and e_w)",
-            holds=None if None in mask else all(mask),  # type: ignore[arg-type]
-            evidence=evidence(
-                ["roft", "roft_no_mask_sync"], (*pose_metrics, "rmse_v_cmps", "rmse_w_dps")
-            ),
-        )
-    )
-    sync = better("roft", "roft_no_pose_sync", "rmse_a_deg")
-    findings.append(
-        Finding(
-            claim="removing pose sync raises the angular error e_a",
-            holds=sync,
-            evidence=evidence(["roft", "roft_no_pose_sync"], ("rmse_a_deg",)),
-        )
-    )
     gt_rows = ["roft_gt_mask_pose", "roft_gt_pose", "roft_gt_mask"]
-    gt = [better(k, "roft", m) for k in gt_rows for m in pose_metrics]
-    findings.append(
-        Finding(
-            claim="with ground-truth inputs ROFT gets better (each GT row beats ROFT on ADD-AUC, "
+    present = [k for k in _ABLATION_ROWS if k in results]
+    return [
+        finding(
+            "ROFT beats the 5 fps detector (DOPE) on ADD-AUC, e_t and e_a",
+            [better("roft", "detector", m) for m in pose_metrics],
+            ["roft", "detector"],
+            pose_metrics,
+        ),
+        finding(
+            "in the ablation, removing velocity or pose is worst (the two worst rows on ADD-AUC, "
             "e_t and e_a)",
-            holds=None if None in gt else all(gt),  # type: ignore[arg-type]
-            evidence=evidence(["roft", *gt_rows]),
-        )
-    )
-    return findings
+            [worst_two(m) for m in pose_metrics],
+            present,
+            pose_metrics,
+        ),
+        finding(
+            "removing mask sync hurts clearly (worse ADD-AUC, e_t, e_a, e_v and e_w)",
+            [better("roft", "roft_no_mask_sync", m) for m in (*pose_metrics, *velocity_metrics)],
+            ["roft", "roft_no_mask_sync"],
+            (*pose_metrics, *velocity_metrics),
+        ),
+        finding(
+            "removing pose sync raises the angular error e_a",
+            [better("roft", "roft_no_pose_sync", "rmse_a_deg")],
+            ["roft", "roft_no_pose_sync"],
+            ("rmse_a_deg",),
+        ),
+        finding(
+            "with ground-truth inputs ROFT gets better (each GT row beats ROFT on ADD-AUC, e_t "
+            "and e_a)",
+            [better(k, "roft", m) for k in gt_rows for m in pose_metrics],
+            ["roft", *gt_rows],
+            pose_metrics,
+        ),
+    ]
+
+
+_ABLATION_ROWS = (
+    "roft",
+    "roft_no_pose_sync",
+    "roft_no_outlier_rejection",
+    "roft_no_mask_sync",
+    "roft_no_velocity",
+    "roft_no_pose",
+)
+"""The ROFT rows of Table IV that remove a component."""
 
 
 # ------------------------------------------------------------------------------- tables

@@ -61,9 +61,11 @@ def test_the_paper_numbers_pass_the_findings_check():
 def test_each_finding_fails_when_its_numbers_say_so(key, metric, value, broken):
     results = _paper_results()
     results[key][ALL][metric] = value
-    holds = [f.holds for f in check_findings(results)]
+    findings = check_findings(results)
+    holds = [f.holds for f in findings]
     assert holds[broken] is False
     assert sum(h is False for h in holds) == 1
+    assert f"on {metric}" in findings[broken].evidence.split("Fails: ")[1]
 
 
 def test_missing_rows_are_not_checked():
@@ -79,6 +81,13 @@ def test_plan_uses_the_ablation_configs_and_the_paper_faults(tmp_path):
     by_label = {c.label: c for c in cells}
     assert by_label["roft"].options.tracker_config == RoftConfig()
     assert by_label["roft_no_pose_sync"].options.tracker_config.use_pose_resync is False
+    no_velocity = plan_paper(
+        paper_rows(["roft_no_velocity"]), [dataset / "box_a"], flow="none", seed=0
+    )[0].options.tracker_config
+    assert not (no_velocity.use_velocity or no_velocity.use_pose_resync)
+    assert not no_velocity.outlier_rejection.enable
+    assert no_velocity.pose.sigma_angular == (0.01,) * 3
+    assert no_velocity.pose.meas_cov_q == (0.01,) * 3
     gt = by_label["roft_gt_mask_pose"].options
     assert (gt.poses, gt.masks) == ("gt", "gt")
     hold = by_label["detector"].options
