@@ -471,6 +471,12 @@ def build_report(
             raise ConfigError(f"{results}: {e}") from None
     if (results / "sweep.json").is_file():
         return _sweep_report(results, out, options)
+    if (results / "paper.json").is_file():
+        raise ConfigError(
+            f"{str(results)!r} is a roft-sim paper folder: its report is tables.md there (rerun "
+            "roft-sim paper --resume to rebuild it); for plots and videos of one row, run it with "
+            "roft-sim run and report on that folder"
+        )
     raise ConfigError(
         f"{str(results)!r} is not a results folder: expected run.json (roft-sim run) or "
         "sweep.json (roft-sim sweep)"

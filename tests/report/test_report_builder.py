@@ -95,5 +95,8 @@ def test_sweep_report(tmp_path, capsys):
 def test_report_of_a_folder_that_is_no_result(tmp_path, capsys):
     assert main(["report", str(tmp_path)]) == 2
     assert "is not a results folder" in capsys.readouterr().err
+    (tmp_path / "paper.json").write_text("{}")
+    assert main(["report", str(tmp_path)]) == 2
+    assert "its report is tables.md" in capsys.readouterr().err
     assert main(["report", str(tmp_path / "none")]) == 2
     assert "does not exist" in capsys.readouterr().err
