@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -40,6 +41,7 @@ F32 = NDArray[np.float32]
 __all__ = [
     "AnalyticBox",
     "AnalyticMotion",
+    "Motion",
     "AnalyticBoxDepthRenderer",
     "analytic_box_sequence",
     "default_intrinsics",
@@ -94,6 +96,14 @@ class AnalyticBox:
             faces=faces.astype(np.int64),
             model_points_m=model_points,
         )
+
+
+class Motion(Protocol):
+    """Anything with exact poses and velocities over time (e.g. :class:`AnalyticMotion`)."""
+
+    def track(self, t_s: ArrayLike) -> PoseTrack:
+        """Poses and velocities (camera frame) at times ``t_s`` ``(N,)`` [s]."""
+        ...
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -333,7 +343,7 @@ def analytic_box_sequence(
     fps: int = 30,
     intrinsics: CameraIntrinsics | None = None,
     box: AnalyticBox | None = None,
-    motion: AnalyticMotion | None = None,
+    motion: Motion | None = None,
     wall_depth_m: float = 1.2,
     name: str = "analytic_box",
 ) -> InMemorySequence:
@@ -344,7 +354,9 @@ def analytic_box_sequence(
         fps: camera rate [Hz]; frame k is at ``k / fps`` s.
         intrinsics: camera; default :func:`default_intrinsics` (160x120).
         box: the object; default :class:`AnalyticBox`.
-        motion: the trajectory; default :class:`AnalyticMotion` (peaks near 0.5 m/s and 4 rad/s).
+        motion: the trajectory; default :class:`AnalyticMotion` (peaks near 0.5 m/s and 4 rad/s);
+            any :class:`Motion` (e.g. a placed trajectory wrapped by
+            :class:`roft_sim.testing.stream_strategies.TrajectoryMotion`).
         wall_depth_m: depth of the static textured background wall [m].
         name: sequence name.
 
@@ -395,7 +407,9 @@ def analytic_box_sequence(
         extra_metadata={
             "generator": "roft_sim.testing.analytic_scene",
             "box": dataclasses.asdict(box),
-            "motion": dataclasses.asdict(motion),
+            "motion": dataclasses.asdict(motion)
+            if dataclasses.is_dataclass(motion) and not isinstance(motion, type)
+            else repr(motion),
             "wall_depth_m": wall_depth_m,
         },
     )

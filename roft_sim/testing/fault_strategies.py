@@ -18,6 +18,8 @@ probabilities, so a failing example reads as a short fault list; print it as a t
 
 from __future__ import annotations
 
+import functools
+
 from hypothesis import strategies as st
 
 from roft_sim.faults import (
@@ -76,12 +78,18 @@ __all__ = [
 
 _DIVISORS_OF_30 = (1, 2, 3, 5, 6, 10, 15, 30)
 
+# The strategy builders below are memoised (@functools.cache): strategies are immutable, and
+# _stream_faults draws from them once per example, so building them anew each time (and letting
+# hypothesis validate them again) tripled the cost of drawing a fault configuration.
 
+
+@functools.cache
 def probabilities(max_p: float = 1.0) -> st.SearchStrategy[float]:
     """Probabilities in [0, max_p] (shrink towards 0)."""
     return st.floats(0.0, max_p, allow_nan=False, allow_infinity=False)
 
 
+@functools.cache
 def delay_distributions(max_frames: int = 15) -> st.SearchStrategy:
     """Any delay model with delays in [0, max_frames] frames."""
     fixed = st.builds(FixedDelay, frames=st.integers(0, max_frames))
@@ -100,6 +108,7 @@ def delay_distributions(max_frames: int = 15) -> st.SearchStrategy:
     return st.one_of(fixed, uniform, lognormal, empirical)
 
 
+@functools.cache
 def sampling_faults(max_period_frames: int = 10) -> st.SearchStrategy:
     """A ``rate`` (period or a divisor of 30 Hz) or a ``busy`` network."""
     by_period = st.builds(
@@ -112,11 +121,13 @@ def sampling_faults(max_period_frames: int = 10) -> st.SearchStrategy:
     return st.one_of(by_period, by_hz, busy)
 
 
+@functools.cache
 def _windows() -> st.SearchStrategy[tuple[tuple[int, int], ...]]:
     window = st.tuples(st.integers(0, 200), st.integers(1, 30)).map(lambda s: (s[0], s[0] + s[1]))
     return st.lists(window, max_size=3).map(tuple)
 
 
+@functools.cache
 def loss_faults() -> st.SearchStrategy:
     """Bernoulli, Gilbert-Elliott or capture-blackout losses."""
     return st.one_of(
@@ -132,6 +143,7 @@ def loss_faults() -> st.SearchStrategy:
     )
 
 
+@functools.cache
 def stamp_faults() -> st.SearchStrategy:
     """Clock skew: offset, drift and time-stamp noise."""
     return st.builds(
@@ -142,6 +154,7 @@ def stamp_faults() -> st.SearchStrategy:
     )
 
 
+@functools.cache
 def delivery_faults() -> st.SearchStrategy:
     """Duplicates, stale results, reordering and arrival blackouts (drop or hold)."""
     after = st.tuples(st.integers(0, 5), st.integers(0, 5)).map(sorted)
@@ -162,6 +175,7 @@ def delivery_faults() -> st.SearchStrategy:
     )
 
 
+@functools.cache
 def pose_outlier_faults() -> st.SearchStrategy:
     """Translation jumps, rotation flips and wrong-object poses."""
     return st.one_of(
@@ -171,6 +185,7 @@ def pose_outlier_faults() -> st.SearchStrategy:
     )
 
 
+@functools.cache
 def mask_corruption_faults() -> st.SearchStrategy:
     """Mask shifts, erosion/dilation, empty masks, blobs and wrong-frame masks (small sizes,
     for tiny test images)."""
@@ -257,6 +272,7 @@ def mask_stream_faults(
     )
 
 
+@functools.cache
 def camera_faults() -> st.SearchStrategy[CameraFaults]:
     """Dropped camera frames, depth holes and depth noise (small sizes)."""
     fault = st.one_of(
@@ -272,6 +288,7 @@ def camera_faults() -> st.SearchStrategy[CameraFaults]:
     return st.lists(fault, max_size=3).map(lambda f: CameraFaults(faults=tuple(f)))
 
 
+@functools.cache
 def flow_faults() -> st.SearchStrategy[FlowFaults]:
     """Flow noise, holes and sign flips."""
     fault = st.one_of(
