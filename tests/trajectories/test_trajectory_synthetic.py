@@ -63,6 +63,33 @@ def test_default_synthetic_motion_hits_the_fast_ycb_speed_targets() -> None:
         assert np.degrees(w_peak.max()) == pytest.approx(266.0, rel=1e-12)
 
 
+def _peak_accelerations(traj: Trajectory) -> tuple[float, float, float]:
+    """(max linear [m/s^2], max angular [deg/s^2], p95 angular [deg/s^2]) sampled at 1 kHz."""
+    sample = sample_at_rate(traj, 1000.0)
+    a = np.linalg.norm(sample.a_mps2, axis=1)
+    alpha = np.degrees(np.linalg.norm(sample.alpha_radps2, axis=1))
+    return float(a.max()), float(alpha.max()), float(np.percentile(alpha, 95))
+
+
+def test_accelerations_stay_within_the_human_like_bounds() -> None:
+    """Every primitive respects the bounds; the p95 matches captured hand motion (TUM VI rooms:
+    830-990 deg/s^2), while the peak speeds stay at the Fast-YCB targets."""
+    for seed in (0, 1, 2):
+        config = SyntheticMotionConfig(seed=seed, duration_s=20.0)
+        a_max, alpha_max, alpha_p95 = _peak_accelerations(build_trajectory(config, FAST_YCB_CAMERA))
+        assert a_max <= config.peak_linear_acceleration_mps2 * (1 + 1e-6)
+        assert alpha_max <= config.peak_angular_acceleration_dps2 * (1 + 1e-6)
+        assert 700.0 < alpha_p95 <= 1000.0
+    # without the bound the same primitives accelerate far harder (the bound has an effect)
+    loose = SyntheticMotionConfig(
+        seed=0,
+        duration_s=20.0,
+        peak_linear_acceleration_mps2=1e6,
+        peak_angular_acceleration_dps2=1e9,
+    )
+    assert _peak_accelerations(build_trajectory(loose, FAST_YCB_CAMERA))[1] > 3000.0
+
+
 def test_synthetic_motion_stays_in_view_at_the_working_distance() -> None:
     for camera, radius in ((FAST_YCB_CAMERA, 0.1), (SMALL_CAMERA, 0.05)):
         traj = build_trajectory(SyntheticMotionConfig(seed=7), camera, object_radius_m=radius)
@@ -114,7 +141,12 @@ def test_configured_targets_are_hit() -> None:
 @pytest.mark.parametrize(
     ("kwargs", "message"),
     [
-        ({"duration_s": 1.0}, r"too short .* use at least 1.8 s"),
+        ({"duration_s": 1.0}, r"too short .* use at least 1.80 s"),
+        ({"peak_angular_acceleration_dps2": 0.0}, "peak_angular_acceleration_dps2 must be a posi"),
+        (
+            {"duration_s": 3.0, "peak_linear_acceleration_mps2": 0.5},
+            r"too short .* use at least 7.39 s .*acceleration bounds",
+        ),
         ({"peak_linear_speed_mps": 0.0}, "peak_linear_speed_mps must be a positive number"),
         ({"working_distance_m": (0.9, 0.4)}, "0 < near < far"),
         (
