@@ -5,8 +5,7 @@
 - ``thorough`` (:data:`THOROUGH_PROFILE`): 2000 random examples, no deadline: a long search on
   demand (``pytest --hypothesis-profile=thorough``).
 
-Both switch off the ``too_slow`` and ``data_too_large`` health checks (a tracker run over a fault
-schedule takes milliseconds, and a whole schedule is a lot of data). The pytest plugin registers
+Both switch off the health checks of :data:`TRACKER_HEALTH_CHECKS`. The pytest plugin registers
 them when hypothesis is in use; :func:`tracker_settings` gives per-test settings that scale with
 the active profile.
 """
@@ -16,15 +15,27 @@ from __future__ import annotations
 from hypothesis import HealthCheck, settings
 from hypothesis.errors import InvalidArgument
 
-__all__ = ["CI_PROFILE", "THOROUGH_PROFILE", "register_hypothesis_profiles", "tracker_settings"]
+__all__ = [
+    "CI_PROFILE",
+    "THOROUGH_PROFILE",
+    "TRACKER_HEALTH_CHECKS",
+    "register_hypothesis_profiles",
+    "tracker_settings",
+]
 
 CI_PROFILE = "roft-sim-ci"
 """Derandomised, 60 examples, no deadline."""
 THOROUGH_PROFILE = "thorough"
 """2000 random examples, no deadline."""
 
-SLOW_HEALTH_CHECKS = (HealthCheck.too_slow, HealthCheck.data_too_large)
-"""Health checks that tracker properties trip by nature."""
+TRACKER_HEALTH_CHECKS = (
+    HealthCheck.too_slow,
+    HealthCheck.data_too_large,
+    HealthCheck.function_scoped_fixture,
+)
+"""Health checks that tracker properties trip by nature: a run takes milliseconds, a schedule is
+a lot of data, and the plugin's ``make_tracker`` is a function-scoped fixture (a stateless
+factory: every call builds a fresh tracker, so sharing it across examples is safe)."""
 
 
 def register_hypothesis_profiles() -> None:
@@ -39,12 +50,12 @@ def register_hypothesis_profiles() -> None:
             settings.get_profile(name)
         except InvalidArgument:
             settings.register_profile(
-                name, deadline=None, suppress_health_check=list(SLOW_HEALTH_CHECKS), **values
+                name, deadline=None, suppress_health_check=list(TRACKER_HEALTH_CHECKS), **values
             )
 
 
 def tracker_settings(*, fraction: float = 1.0, min_examples: int = 1) -> settings:
-    """Settings for a tracker property test: no deadline, the slow health checks off, and
+    """Settings for a tracker property test: no deadline, :data:`TRACKER_HEALTH_CHECKS` off, and
     ``fraction`` of the active profile's ``max_examples`` (at least ``min_examples``), so
     ``--hypothesis-profile=thorough`` scales every test up.
 
@@ -54,4 +65,5 @@ def tracker_settings(*, fraction: float = 1.0, min_examples: int = 1) -> setting
     if not fraction > 0:
         raise ValueError(f"fraction must be > 0, got {fraction}")
     n = max(min_examples, int(round(settings.default.max_examples * fraction)))
-    return settings(max_examples=n, deadline=None, suppress_health_check=list(SLOW_HEALTH_CHECKS))
+    checks = list(TRACKER_HEALTH_CHECKS)
+    return settings(max_examples=n, deadline=None, suppress_health_check=checks)
