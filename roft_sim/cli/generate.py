@@ -5,8 +5,12 @@
 
 One sequence per scenario (named after the scenario; after the object for ``--preset
 fast-ycb``), rendered with exact ground truth and the scenario's simulated networks on every
-frame. Parallel worker processes, a progress bar, atomic per-frame writes, ``--resume``.
-Everything is described in docs/generate.md.
+frame. Parallel worker processes or a Ray cluster (``--executor ray``), ``--shard i/N`` for array
+jobs, a progress bar, atomic per-frame writes, ``--resume``. Everything is described in
+docs/generate.md and docs/scaleout.md.
+
+:func:`add_executor_arguments`, :func:`executor_from_args` and :func:`shard_from_args` are
+shared with ``roft-sim sweep``.
 """
 
 from __future__ import annotations
@@ -17,11 +21,12 @@ import logging
 import os
 import sys
 from pathlib import Path
+from typing import Any
 
 from roft_sim.cli.output_dirs import prepare_output_dir
 from roft_sim.errors import ConfigError
 
-__all__ = ["register"]
+__all__ = ["register", "add_executor_arguments", "executor_from_args", "shard_from_args"]
 
 ORDER = 10
 
@@ -53,6 +58,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "  roft-sim generate --preset fast-ycb --out data/small --frames 60 "
         "--resolution 640x360\n"
         "  roft-sim generate --preset fast-ycb --out data/fast_ycb --resume   # after Ctrl-C\n"
+        "  roft-sim generate --preset fast-ycb --out /shared/fy --executor ray --address auto\n"
+        "  roft-sim generate --preset fast-ycb --out /shared/fy --shard 2/4   # array job 2 of 4\n"
+        "  roft-sim generate --preset fast-ycb --out /shared/fy --resume      # after all shards\n"
         "\nexit codes: 0 done, 1 a worker failed (frames kept: --resume), 2 bad arguments, "
         "scenario or output, 130 interrupted (frames kept: --resume)",
     )
@@ -94,12 +102,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="scenario seed (textures, depth noise, simulated networks; the trajectory keeps its "
         "own seed); default: each scenario's seed",
     )
-    parser.add_argument(
-        "--workers",
-        type=int,
-        default=1,
-        help="worker processes (default 1 = in this process); each renders with its own "
-        "OpenGL context",
+    add_executor_arguments(
+        parser,
+        workers_help="workers, each rendering with its own OpenGL context: local processes "
+        "(default 1 = in this process) or, with --executor ray, Ray actors (default: one per "
+        "CPU of the cluster)",
+        shard_help="generate only shard i of N (1-based, e.g. 2/4) of the frame chunks, for "
+        "array jobs sharing --out; the same command with --resume and no --shard finalizes "
+        "the sequences once every shard has finished (docs/scaleout.md)",
     )
     parser.add_argument(
         "--chunk-frames",
@@ -123,6 +133,61 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--no-progress", action="store_true", help="no progress bar (also with -q)")
     parser.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
     parser.set_defaults(func=_run)
+
+
+def add_executor_arguments(
+    parser: argparse.ArgumentParser, *, workers_help: str, shard_help: str
+) -> None:
+    """Adds ``--workers``, ``--executor``, ``--address`` and ``--shard`` (generate, sweep)."""
+    parser.add_argument("--workers", type=int, default=None, help=workers_help)
+    parser.add_argument(
+        "--executor",
+        default="local",
+        metavar="{local,ray}",
+        help="where the work units run: local processes (default) or a Ray cluster (needs the "
+        "ray extra: pip install 'roft-sim[ray]')",
+    )
+    parser.add_argument(
+        "--address",
+        metavar="ADDR",
+        help="with --executor ray: the cluster to use (host:6379, ray://host:10001, or auto for "
+        "the one running on this node); default: a private local Ray instance",
+    )
+    parser.add_argument("--shard", metavar="i/N", help=shard_help)
+
+
+def shard_from_args(args: argparse.Namespace) -> Any:
+    """The :class:`~roft_sim.executors.Shard` of ``--shard`` (None without it).
+
+    Raises:
+        ConfigError: a malformed ``--shard``, or ``--shard`` with ``--overwrite`` (a shard must
+            never empty the folder other shards write into).
+    """
+    from roft_sim.executors import Shard
+
+    if args.shard is None:
+        return None
+    shard = Shard.parse(args.shard)
+    if args.overwrite:
+        raise ConfigError(
+            f"--shard {args.shard} with --overwrite: shards write into the same --out, so one "
+            "must not empty it; empty it once before starting the shards"
+        )
+    return shard
+
+
+def executor_from_args(args: argparse.Namespace) -> Any:
+    """The executor of ``--executor``/``--workers``/``--address``. Ray actors get this
+    process's OpenGL backend variables (``MUJOCO_GL``, ``PYOPENGL_PLATFORM``): workers on other
+    nodes do not inherit the driver's environment.
+
+    Raises:
+        ConfigError: bad values, ``--address`` without ``--executor ray``, Ray not installed.
+    """
+    from roft_sim.executors import make_executor
+
+    env = {k: os.environ[k] for k in ("MUJOCO_GL", "PYOPENGL_PLATFORM") if os.environ.get(k)}
+    return make_executor(args.workers, kind=args.executor, address=args.address, worker_env=env)
 
 
 def _assets_dir(args: argparse.Namespace) -> Path | None:
@@ -183,22 +248,30 @@ def _run(args: argparse.Namespace) -> int:
             f"--assets {str(assets_dir)!r} is not a folder; give a folder of YCB objects "
             "(<name>/google_16k/textured.obj) or leave it out"
         )
+    if args.overwrite and args.resume:
+        raise ConfigError("--overwrite and --resume contradict each other; pick one")
+    shard = shard_from_args(args)
     backend = require_gl_backend(os.environ)  # before MuJoCo is imported
+    executor = executor_from_args(args)  # checks --executor/--workers/--address (and Ray)
     options = GenerationOptions(
         format=args.format,
-        workers=args.workers,
+        workers=args.workers or 1,
         chunk_frames=args.chunk_frames,
         resume=args.resume,
         assets_dir=assets_dir,
         cache_dir=default_cache_dir(os.environ),
         gl_backend=backend,
         progress=not (args.no_progress or args.quiet),
+        shard=shard,
     )
     if args.out.exists() and not args.out.is_dir():
         raise ConfigError(f"output {str(args.out)!r} is a file; give a directory path")
-    if args.overwrite and args.resume:
-        raise ConfigError("--overwrite and --resume contradict each other; pick one")
-    if not (args.overwrite or args.resume) and args.out.is_dir() and any(args.out.iterdir()):
+    shared = shard is not None  # other shards write into --out at the same time
+    if (
+        not (args.overwrite or args.resume or shared)
+        and args.out.is_dir()
+        and any(args.out.iterdir())
+    ):
         prepare_output_dir(args.out)  # raises the standard "not empty" error
     summary = generate_dataset(
         scenarios,
@@ -208,11 +281,22 @@ def _run(args: argparse.Namespace) -> int:
         sequence_naming=PRESETS[preset].sequence_names if preset else "scenario",
         preset=preset,
         prepare_output=lambda out: prepare_output_dir(
-            out, overwrite=args.overwrite, resume=args.resume
+            out, overwrite=args.overwrite, resume=args.resume or shared
         ),
+        # local: let generate_dataset choose (in this process when there is one unit)
+        executor=None if args.executor == "local" else executor,
     )
     if args.json:
         print(json.dumps(summary.report(), indent=2))
+    elif shard is not None:
+        for s in summary.sequences:
+            print(f"{args.out / s.name}: {s.frames_generated} frames generated now")
+        print(
+            f"shard {shard}: {summary.frames_generated} frames in {summary.wall_s:.1f} s; once "
+            "every shard has finished, run the same command without --shard and with --resume "
+            "to finalize the sequences",
+            file=sys.stderr,
+        )
     else:
         for s in summary.sequences:
             print(f"{s.path} ({s.n_frames} frames, {s.frames_generated} generated now)")

@@ -2,8 +2,10 @@
 
     roft-sim sweep --config sweep.toml --out DIR [--workers N] [--resume]
     roft-sim sweep DATASET... --trackers roft,naive-delay --param delay=0:20:2 --out DIR
+    roft-sim sweep --config sweep.toml --out DIR --executor ray [--address ADDR]
+    roft-sim sweep --config sweep.toml --out DIR --shard 2/4      # then: --resume, no --shard
 
-Everything is described in docs/running.md.
+Everything is described in docs/running.md and docs/scaleout.md.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from roft_sim.cli.generate import add_executor_arguments, executor_from_args, shard_from_args
 from roft_sim.cli.output_dirs import prepare_output_dir
 from roft_sim.cli.run import add_input_arguments
 from roft_sim.errors import ConfigError, DatasetFormatError, PluginError
@@ -45,6 +48,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "  roft-sim sweep data/ci --trackers roft,detector-hold --param dropout=0,0.2,0.4,0.6 "
         "--out sweeps/dropout\n"
         "  roft-sim sweep --config sweeps/delay.toml --out sweeps/delay --resume\n"
+        "  roft-sim sweep --config sweeps/delay.toml --out /shared/delay --executor ray "
+        "--address auto\n"
+        "  roft-sim sweep --config sweeps/delay.toml --out /shared/delay --shard 2/4  "
+        "# array job 2 of 4\n"
+        "  roft-sim sweep --config sweeps/delay.toml --out /shared/delay --resume   "
+        "# summary, after all shards\n"
         "\nexit codes: 0 done, 1 a cell failed (finished cells kept: --resume), 2 bad arguments "
         "or output, 130 interrupted (finished cells kept: --resume)",
     )
@@ -80,8 +89,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     add_input_arguments(parser, sweep=True)
     parser.set_defaults(**{name: None for name in _INPUT_FLAGS})
     parser.add_argument("--out", type=Path, required=True, help="sweep output folder")
-    parser.add_argument(
-        "--workers", type=int, default=1, help="worker processes (default 1 = in this process)"
+    add_executor_arguments(
+        parser,
+        workers_help="workers: local processes (default 1 = in this process) or, with "
+        "--executor ray, Ray actors (default: one per CPU of the cluster)",
+        shard_help="run only shard i of N (1-based, e.g. 2/4) of the cells, for array jobs "
+        "sharing --out; no summary is written: once every shard has finished, the same "
+        "command with --resume and no --shard writes it (docs/scaleout.md)",
     )
     parser.add_argument("--overwrite", action="store_true", help="empty a non-empty --out first")
     parser.add_argument(
@@ -147,7 +161,6 @@ def _load_config(args: argparse.Namespace) -> Any:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from roft_sim.harness.executors import make_executor
     from roft_sim.harness.sweep import plan_sweep, run_sweep
 
     config = _load_config(args)
@@ -155,18 +168,46 @@ def _run(args: argparse.Namespace) -> int:
         plan_sweep(config)  # validates trackers, faults and datasets before the output is touched
     except (DatasetFormatError, PluginError) as e:
         raise ConfigError(str(e)) from None
-    executor = make_executor(args.workers)
-    out = prepare_output_dir(args.out, overwrite=args.overwrite, resume=args.resume)
+    shard = shard_from_args(args)
     from roft_sim.render.gl_backend import select_gl_backend
 
     select_gl_backend(os.environ)  # workers inherit it; MuJoCo loads only if a tracker renders
+    executor = executor_from_args(args)
+    # Shards share --out: each keeps what is there (finished cells of every shard).
+    out = prepare_output_dir(
+        args.out, overwrite=args.overwrite, resume=args.resume or shard is not None
+    )
     result = run_sweep(
         config,
         out,
         executor=executor,
         progress=not (args.no_progress or args.quiet or args.json),
         plots=not args.no_plots,
+        shard=shard,
     )
+    if shard is not None:
+        done = sum(c.cell_id in result.records for c in result.shard_cells)
+        if args.json:
+            print(
+                json.dumps(
+                    {
+                        "out": str(out),
+                        "cells": len(result.cells),
+                        "shard": str(shard),
+                        "shard_cells": len(result.shard_cells),
+                        "shard_cells_finished": done,
+                        "summary": None,
+                    },
+                    indent=2,
+                )
+            )
+        print(
+            f"shard {shard}: {done} of its {len(result.shard_cells)} cells finished (the sweep "
+            f"has {len(result.cells)}) in {out}; once every shard has finished, run the same "
+            "command without --shard and with --resume to write the summary",
+            file=sys.stderr,
+        )
+        return 0
     if args.json:
         print(
             json.dumps(

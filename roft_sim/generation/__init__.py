@@ -4,7 +4,8 @@ networks -> datasets on disk (``roft-sim generate``; docs/generate.md).
 - :func:`generate_dataset`: the run (writers, work units, worker processes, progress, resume).
 - :class:`SequenceGenerator`: one scenario's frames as ``DatasetFrame`` objects (imported lazily:
   it imports MuJoCo, so ``MUJOCO_GL`` must be chosen first).
-- :func:`plan_work_units` / :class:`WorkUnit` / :func:`shard_work_units`: the unit of work.
+- :func:`plan_work_units` / :class:`WorkUnit` / :func:`plan_shard_units`: the unit of work and
+  ``--shard i/N``.
 - :func:`shipped_scenarios_dir`, :data:`PRESETS`, :func:`preset_scenario_paths`: shipped scenarios.
 """
 
@@ -37,6 +38,7 @@ from roft_sim.generation.runner import (
 from roft_sim.generation.work_units import (
     WorkUnit,
     parse_shard,
+    plan_shard_units,
     plan_work_units,
     shard_work_units,
 )
@@ -56,6 +58,7 @@ __all__ = [
     "WorkUnit",
     "plan_work_units",
     "shard_work_units",
+    "plan_shard_units",
     "parse_shard",
     "PRESETS",
     "Preset",

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import re
+import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from importlib import metadata as importlib_metadata
@@ -205,9 +206,15 @@ def prepare_jobs(
     cache_dir: Path | None,
     gl_backend: str | None,
     prepare_output: Callable[[Path], Any] | None = None,
+    shard_run: bool = False,
 ) -> list[SequenceJob]:
     """Opens one writer per scenario (see the module doc). ``prepare_output(out_dir)`` is
     called after every check and before the first writer opens.
+
+    With ``shard_run`` (one of several ``--shard`` jobs writing the same output at once) every
+    writer is opened to resume (another shard may have created it a moment ago), and a sequence
+    with every frame present is left alone: only a run without shards finalizes and checks
+    finished sequences.
 
     Raises:
         ConfigError: duplicate sequence names, an output that exists without ``resume``, a
@@ -240,21 +247,22 @@ def prepare_jobs(
             preset=preset,
             gl_backend=gl_backend,
         )
-        writer = open_writer(
-            fmt,  # type: ignore[arg-type]
-            out_dir,
-            sequence_name=name,
-            object_name=object_name_of(scenario),
-            intrinsics=scenario.intrinsics,
-            fps=scenario.fps,
-            n_frames=scenario.n_frames,
-            metadata=metadata,
-            object_model=assets.model,
-            flow_encodings=scenario.networks.flow_encodings,
-            resume=resume,
-        )
+        writer_args = {
+            "sequence_name": name,
+            "object_name": object_name_of(scenario),
+            "intrinsics": scenario.intrinsics,
+            "fps": scenario.fps,
+            "n_frames": scenario.n_frames,
+            "metadata": metadata,
+            "object_model": assets.model,
+            "flow_encodings": scenario.networks.flow_encodings,
+        }
+        if shard_run:
+            writer = _open_shared_writer(fmt, out_dir, writer_args)
+        else:
+            writer = open_writer(fmt, out_dir, resume=resume, **writer_args)  # type: ignore[arg-type]
         missing = sorted(set(range(scenario.n_frames)) - writer.completed_frames())
-        if not missing and resume:
+        if not missing and resume and not shard_run:
             _check_finished_or_complete(writer, metadata)
         jobs.append(
             SequenceJob(
@@ -266,6 +274,24 @@ def prepare_jobs(
             )
         )
     return jobs
+
+
+_SHARED_OPEN_TRIES = 4
+"""Attempts to open a writer that other shards may be creating at the same moment."""
+
+
+def _open_shared_writer(fmt: str, out_dir: Path, writer_args: dict[str, Any]) -> SequenceWriter:
+    """Opens a writer to resume, retrying briefly: while another shard creates the same sequence
+    folder, it can look like a foreign non-empty folder for an instant. A persistent problem
+    (different settings, a foreign folder) is raised after the last try."""
+    for attempt in range(_SHARED_OPEN_TRIES):
+        try:
+            return open_writer(fmt, out_dir, resume=True, **writer_args)  # type: ignore[arg-type]
+        except ConfigError:
+            if attempt == _SHARED_OPEN_TRIES - 1:
+                raise
+            time.sleep(0.25 * (attempt + 1))
+    raise AssertionError("unreachable")
 
 
 def _check_trajectory_length(scenario: Scenario, mesh: Any) -> None:

@@ -1,37 +1,44 @@
-"""Runs a generation: work units on local worker processes, progress, finalize.
+"""Runs a generation: work units on an executor, progress, finalize.
 
-:func:`generate_dataset` is what ``roft-sim generate`` calls. With ``workers == 1`` the units run
-in the calling process; otherwise in a pool of ``spawn``-started processes (never ``fork``:
-MuJoCo's OpenGL contexts must not be inherited), each owning one
-:class:`~roft_sim.generation.SequenceGenerator` at a time. Frames are written atomically by the
-dataset writers, so an interrupted run (Ctrl-C, a killed worker, a crash, or
-``stop_after_frames``) leaves only complete frames, and ``resume=True`` generates exactly the
-missing ones; the result is byte-identical to an uninterrupted run.
+:func:`generate_dataset` is what ``roft-sim generate`` calls. The units run on an executor
+(:mod:`roft_sim.executors`): by default in the calling process (``workers == 1``) or in a pool of
+``spawn``-started processes (never ``fork``: MuJoCo's OpenGL contexts must not be inherited);
+any other executor (Ray) works the same. Every worker owns one
+:class:`~roft_sim.generation.SequenceGenerator` at a time (set up by :func:`_init_worker`). Frames
+are written atomically by the dataset writers, so an interrupted run (Ctrl-C, a killed worker or
+driver, a crash, or ``stop_after_frames``) leaves only complete frames, and ``resume=True``
+generates exactly the missing ones, found on disk; the result is byte-identical to an
+uninterrupted run. With ``shard`` the run generates only its shard's frames and finalizes
+nothing (docs/scaleout.md).
 """
 
 from __future__ import annotations
 
-import contextlib
 import logging
-import multiprocessing
-import queue
 import time
 from collections.abc import Callable, Sequence
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
-from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
 from roft_sim.datasets import DATASET_FORMATS
 from roft_sim.errors import ConfigError, RoftSimError
+from roft_sim.executors import (
+    Executor,
+    LocalProcessExecutor,
+    SerialExecutor,
+    Shard,
+    WorkerSetup,
+    WorkUnitError,
+    report_progress,
+)
 from roft_sim.generation.jobs import (
     ScenarioOverrides,
     SequenceJob,
     prepare_jobs,
     sequence_name_for,
 )
-from roft_sim.generation.work_units import WorkUnit, plan_work_units
+from roft_sim.generation.work_units import WorkUnit, plan_shard_units, plan_work_units
 from roft_sim.scenario import Scenario
 
 __all__ = [
@@ -77,6 +84,10 @@ class GenerationOptions:
     sequences (time-sliced runs; tests of resume). None = all."""
     start_method: Literal["spawn", "forkserver"] = "spawn"
     """How worker processes start (never ``fork``)."""
+    shard: Shard | None = None
+    """Generate only this shard's frames (``--shard i/N``; :func:`plan_shard_units`) into an
+    output other shards write at the same time: implies resuming, finalizes nothing. None = the
+    whole run."""
 
     def __post_init__(self) -> None:
         if self.format not in DATASET_FORMATS:
@@ -125,9 +136,11 @@ class GenerationSummary:
     wall_s: float
     """Wall time of the generation [s] (preparation included)."""
     workers: int
-    """Worker processes used."""
+    """Workers used (processes or Ray actors; 1 = in this process)."""
     format: str
     """Dataset format."""
+    shard: Shard | None = None
+    """The shard generated (None = the whole run)."""
     frames_generated: int = field(init=False)
     """Frames generated in this run, all sequences."""
 
@@ -151,6 +164,7 @@ class GenerationSummary:
         return {
             "format": self.format,
             "workers": self.workers,
+            "shard": None if self.shard is None else str(self.shard),
             "wall_s": round(self.wall_s, 3),
             "frames_generated": self.frames_generated,
             "frames_per_s": round(self.frames_per_s, 3),
@@ -172,15 +186,9 @@ class GenerationSummary:
 class _WorkerState:
     """The jobs of a run and the one generator a worker holds (its OpenGL contexts)."""
 
-    def __init__(
-        self,
-        jobs: Sequence[SequenceJob],
-        options: GenerationOptions,
-        report: Callable[[int], None] | None,
-    ) -> None:
+    def __init__(self, jobs: Sequence[SequenceJob], options: GenerationOptions) -> None:
         self.jobs = jobs
         self.options = options
-        self.report = report
         self._current: tuple[int, Any] | None = None
 
     def generator(self, sequence: int) -> Any:
@@ -225,31 +233,41 @@ def run_work_unit(
 
 
 _STATE: _WorkerState | None = None
+"""The worker's state: set by :func:`_init_worker` in every worker (the calling process for the
+in-process executor)."""
 
 
-def _init_worker(jobs: Sequence[SequenceJob], options: GenerationOptions, progress: Any) -> None:
+def _init_worker(jobs: Sequence[SequenceJob], options: GenerationOptions) -> None:
     global _STATE
-    import cv2
+    _STATE = _WorkerState(jobs, options)
 
-    cv2.setNumThreads(1)  # one core per worker; DIS gives the same flow with any thread count
-    _STATE = _WorkerState(jobs, options, progress.put)
+
+def _close_worker() -> None:
+    global _STATE
+    if _STATE is not None:
+        state, _STATE = _STATE, None
+        state.close()
 
 
 def _worker_run(unit: WorkUnit) -> int:
-    assert _STATE is not None, "worker not initialised"
+    if _STATE is None:
+        raise RuntimeError(
+            "generation worker not initialised (run units through an executor "
+            "with the WorkerSetup of generate_dataset)"
+        )
     return run_work_unit(
-        unit, _STATE.jobs[unit.sequence], _STATE.generator(unit.sequence), report=_STATE.report
+        unit, _STATE.jobs[unit.sequence], _STATE.generator(unit.sequence), report=report_progress
     )
 
 
 # ------------------------------------------------------------------------------------ runs
-def _progress_bar(total: int, enabled: bool) -> Any:
+def _progress_bar(total: int, enabled: bool, desc: str = "generate") -> Any:
     from tqdm import tqdm
 
     return tqdm(
         total=total,
         unit="frame",
-        desc="generate",
+        desc=desc,
         disable=not enabled,
         dynamic_ncols=True,
         smoothing=0.05,
@@ -271,96 +289,30 @@ def _budgeted(units: list[WorkUnit], budget: int | None) -> list[WorkUnit]:
     return out
 
 
-def _unit_failed(unit: WorkUnit, jobs: Sequence[SequenceJob], e: Exception) -> GenerationError:
+def _frames_of(unit: Any, jobs: Sequence[SequenceJob]) -> str:
+    if isinstance(unit, WorkUnit):
+        return f"frames {unit.start}-{unit.stop - 1} of {jobs[unit.sequence].sequence_name!r}"
+    return f"work unit {unit!r}"
+
+
+def _generation_error(e: WorkUnitError, jobs: Sequence[SequenceJob]) -> GenerationError:
+    where = _frames_of(e.unit, jobs)
+    if e.worker_died:
+        return GenerationError(
+            f"a worker process died (killed, or out of memory) while generating {where}; the "
+            "frames written so far are kept: run again with --resume"
+        )
+    cause = e.cause if e.cause is not None else e
     return GenerationError(
-        f"generating frames {unit.start}-{unit.stop - 1} of "
-        f"{jobs[unit.sequence].sequence_name!r} failed: {type(e).__name__}: {e}; the frames "
-        "written so far are kept: fix the cause and run again with --resume"
+        f"generating {where} failed: {type(cause).__name__}: {cause}; the frames written so far "
+        "are kept: fix the cause and run again with --resume"
     )
 
 
-def _run_in_process(
-    units: list[WorkUnit],
-    jobs: Sequence[SequenceJob],
-    options: GenerationOptions,
-    report: Callable[[int], None],
-    on_unit_done: Callable[[WorkUnit, int], None],
-) -> None:
-    state = _WorkerState(jobs, options, report)
-    try:
-        for unit in units:
-            try:
-                n = run_work_unit(
-                    unit, jobs[unit.sequence], state.generator(unit.sequence), report=report
-                )
-            except RoftSimError:
-                raise
-            except Exception as e:
-                raise _unit_failed(unit, jobs, e) from e
-            on_unit_done(unit, n)
-    finally:
-        state.close()
-
-
-def _run_in_pool(
-    units: list[WorkUnit],
-    jobs: Sequence[SequenceJob],
-    options: GenerationOptions,
-    report: Callable[[int], None],
-    on_unit_done: Callable[[WorkUnit, int], None],
-) -> None:
-    ctx = multiprocessing.get_context(options.start_method)
-    progress = ctx.Queue()
-    pending = list(reversed(units))
-    running: dict[Future[int], WorkUnit] = {}
-
-    def drain() -> None:
-        with contextlib.suppress(queue.Empty):
-            while True:
-                report(progress.get_nowait())
-
-    executor = ProcessPoolExecutor(
-        max_workers=min(options.workers, len(units)),
-        mp_context=ctx,
-        initializer=_init_worker,
-        initargs=(list(jobs), options, progress),
-    )
-    try:
-        while pending or running:
-            # Keep two units per worker in flight: load balance without a long queue to cancel.
-            while pending and len(running) < 2 * options.workers:
-                unit = pending.pop()
-                running[executor.submit(_worker_run, unit)] = unit
-            done, _ = wait(list(running), timeout=0.2, return_when=FIRST_COMPLETED)
-            drain()
-            for fut in done:
-                unit = running.pop(fut)
-                try:
-                    n = fut.result()
-                except BrokenProcessPool:
-                    raise GenerationError(
-                        "a worker process died (killed, or out of memory) while generating "
-                        f"frames {unit.start}-{unit.stop - 1} of "
-                        f"{jobs[unit.sequence].sequence_name!r}; the frames written so far are "
-                        "kept: run again with --resume"
-                    ) from None
-                except RoftSimError:
-                    raise
-                except Exception as e:
-                    raise _unit_failed(unit, jobs, e) from e
-                on_unit_done(unit, n)
-        drain()
-    except BaseException:
-        # Stop now rather than after the units in flight: frames are atomic, so a worker
-        # stopped in the middle of one leaves no trace a resume would not repair.
-        # (ProcessPoolExecutor has no public terminate; _processes is stable since 3.8.)
-        for proc in list(getattr(executor, "_processes", {}).values()):
-            proc.terminate()
-        raise
-    finally:
-        executor.shutdown(wait=True, cancel_futures=True)
-        progress.close()
-        progress.join_thread()
+def _default_executor(options: GenerationOptions, n_units: int) -> Executor:
+    if options.workers == 1 or n_units <= 1:
+        return SerialExecutor()
+    return LocalProcessExecutor(options.workers, start_method=options.start_method)
 
 
 def generate_dataset(
@@ -373,6 +325,7 @@ def generate_dataset(
     preset: str | None = None,
     prepare_output: Callable[[Path], Any] | None = None,
     on_frames: Callable[[int], None] | None = None,
+    executor: Executor | None = None,
 ) -> GenerationSummary:
     """Generates one sequence per scenario into ``out_dir`` (created if needed).
 
@@ -381,8 +334,8 @@ def generate_dataset(
         out_dir: dataset root; sequence ``name`` goes to ``out_dir/name/`` (fast-ycb, bop) or
             ``out_dir/name.h5`` (hdf5). Checking that the folder may be written (non-empty,
             ``--overwrite``) is the caller's job; the writers refuse to replace a sequence
-            unless ``options.resume``.
-        options: format, workers, resume, ... (default: :class:`GenerationOptions()`).
+            unless ``options.resume`` (or ``options.shard``).
+        options: format, workers, resume, shard, ... (default: :class:`GenerationOptions()`).
         overrides: frames / resolution / seed applied to every scenario (default: none).
         sequence_naming: name sequences after the scenario or after its object.
         preset: the preset the scenarios come from (recorded in the metadata).
@@ -391,6 +344,9 @@ def generate_dataset(
             folder for ``--overwrite``.
         on_frames: called in this process with the number of frames just written (as they
             are reported; e.g. for timing).
+        executor: where the units run (:mod:`roft_sim.executors`, e.g. a
+            :class:`~roft_sim.executors.RayExecutor`); default: this process for
+            ``options.workers == 1``, else ``options.workers`` local processes.
 
     Returns:
         A :class:`GenerationSummary`.
@@ -405,6 +361,7 @@ def generate_dataset(
     if not scenarios:
         raise ConfigError("no scenario to generate; give at least one scenario file or a preset")
     out = Path(out_dir)
+    shard = options.shard
     resolved = [overrides.apply(s) for s in scenarios]
     jobs = prepare_jobs(
         resolved,
@@ -413,16 +370,26 @@ def generate_dataset(
         sequence_names=[sequence_name_for(s, sequence_naming) for s in resolved],
         overrides=overrides,
         preset=preset,
-        resume=options.resume,
+        resume=options.resume or shard is not None,
         assets_dir=options.assets_dir,
         cache_dir=options.cache_dir,
         gl_backend=options.gl_backend,
         prepare_output=prepare_output,
+        shard_run=shard is not None,
     )
-    units = _budgeted(
-        plan_work_units([j.missing_frames for j in jobs], chunk_frames=options.chunk_frames),
-        options.stop_after_frames,
-    )
+    if shard is None:
+        planned = plan_work_units(
+            [j.missing_frames for j in jobs], chunk_frames=options.chunk_frames
+        )
+    else:
+        planned = plan_shard_units(
+            [j.n_frames for j in jobs],
+            [j.sequence_name for j in jobs],
+            [j.missing_frames for j in jobs],
+            chunk_frames=options.chunk_frames,
+            shard=shard,
+        )
+    units = _budgeted(planned, options.stop_after_frames)
     generated = [0] * len(jobs)
     left = [len(j.missing_frames) for j in jobs]
     paths: list[Path | None] = [None] * len(jobs)
@@ -434,26 +401,33 @@ def generate_dataset(
     def on_unit_done(unit: WorkUnit, n: int) -> None:
         generated[unit.sequence] += n
         left[unit.sequence] -= n
-        if left[unit.sequence] == 0:
+        if left[unit.sequence] == 0 and shard is None:
             finalize(unit.sequence)
 
-    for i, job in enumerate(jobs):
-        if not job.missing_frames:
-            finalize(i)
+    if shard is None:
+        for i, job in enumerate(jobs):
+            if not job.missing_frames:
+                finalize(i)
     total = sum(u.n_frames for u in units)
-    workers = 1 if options.workers == 1 or len(units) <= 1 else options.workers
+    if executor is None:
+        executor = _default_executor(options, len(units))
     if units:
-        with _progress_bar(total, options.progress) as bar:
+        desc = "generate" if shard is None else f"generate shard {shard}"
+        with _progress_bar(total, options.progress, desc) as bar:
 
             def report(n: int) -> None:
                 bar.update(n)
                 if on_frames is not None:
                     on_frames(n)
 
-            if workers == 1:
-                _run_in_process(units, jobs, options, report, on_unit_done)
-            else:
-                _run_in_pool(units, jobs, options, report, on_unit_done)
+            setup = WorkerSetup(_init_worker, (list(jobs), options), teardown=_close_worker)
+            try:
+                for unit, n in executor.map_unordered(
+                    _worker_run, units, setup=setup, on_progress=report
+                ):
+                    on_unit_done(unit, n)
+            except WorkUnitError as e:
+                raise _generation_error(e, jobs) from e
     return GenerationSummary(
         sequences=tuple(
             SequenceResult(
@@ -465,6 +439,7 @@ def generate_dataset(
             for i, j in enumerate(jobs)
         ),
         wall_s=time.perf_counter() - t0,
-        workers=workers,
+        workers=executor.workers if units else 1,
         format=options.format,
+        shard=shard,
     )

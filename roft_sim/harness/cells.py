@@ -28,8 +28,8 @@ from typing import Any
 
 from roft_sim.config_files import jsonable
 from roft_sim.datasets import open_sequence
+from roft_sim.executors import Executor, SerialExecutor, Shard, select_shard
 from roft_sim.harness.evaluation import evaluate_run
-from roft_sim.harness.executors import Executor, SerialExecutor
 from roft_sim.harness.options import RunOptions
 from roft_sim.harness.outputs import (
     FRAME_ERRORS_FILE,
@@ -49,6 +49,8 @@ __all__ = [
     "run_cell",
     "execute_cells",
     "finished_cells",
+    "remove_cell_leftovers",
+    "shard_cells",
     "load_cell_metrics",
 ]
 
@@ -194,6 +196,32 @@ def load_cell_metrics(cells_dir: str | Path, cell_id: str) -> SequenceMetrics | 
     return load_frame_errors(path) if path.is_file() else None
 
 
+def remove_cell_leftovers(cells_dir: str | Path, cell_ids: Sequence[str]) -> None:
+    """Deletes what interrupted runs of these cells left behind (their hidden temporary folders,
+    their folders without ``cell.json``), and nothing else: other shards may be running other
+    cells in the same folder."""
+    cells_dir = Path(cells_dir)
+    if not cells_dir.is_dir():
+        return
+    wanted = set(cell_ids)
+    for path in cells_dir.iterdir():
+        if not path.is_dir():
+            continue
+        if path.name.startswith("."):
+            cell_id = path.name[1:].rsplit(".", 2)[0]  # .<cell_id>.<pid>.tmp
+            if cell_id in wanted and path.name.endswith(".tmp"):
+                shutil.rmtree(path, ignore_errors=True)
+        elif path.name in wanted and not (path / CELL_FILE).is_file():
+            shutil.rmtree(path, ignore_errors=True)
+
+
+def shard_cells(cells: Sequence[SweepCell], shard: Shard | None) -> list[SweepCell]:
+    """The cells of ``shard`` (all when None): the cells sorted by id, dealt round-robin (cell
+    ``p`` of the sorted list goes to shard ``p mod N``), so every tracker's cells spread over
+    the shards; the same on every machine and in every rerun (docs/scaleout.md)."""
+    return select_shard(cells, shard, key=lambda c: c.cell_id, layout="round-robin")
+
+
 def execute_cells(
     cells: Sequence[SweepCell],
     cells_dir: str | Path,
@@ -201,11 +229,16 @@ def execute_cells(
     executor: Executor | None = None,
     progress: bool = False,
     on_done: Callable[[SweepCell, dict[str, Any]], None] | None = None,
+    shard: Shard | None = None,
 ) -> dict[str, dict[str, Any]]:
-    """Runs the cells that are not finished yet; returns the records of all ``cells``.
+    """Runs the cells that are not finished yet; returns the records of the finished ``cells``
+    (all of them when ``shard`` is None).
 
-    Finished cells (a folder with ``cell.json``) are not run again; leftovers of interrupted
-    cells are deleted first and those cells run again.
+    Finished cells (a folder with ``cell.json``, found on disk) are not run again; leftovers of
+    interrupted cells are deleted first and those cells run again. With ``shard``, only that
+    shard's cells (:func:`shard_cells`) run, and only their leftovers are deleted, so shards can
+    share ``cells_dir``; without it every leftover is deleted, so run it only while no shard is
+    running there.
 
     Raises:
         WorkUnitError: a cell failed (finished cells are kept; run again to resume).
@@ -216,17 +249,22 @@ def execute_cells(
     dup = sorted({i for i in ids if ids.count(i) > 1})
     if dup:
         raise ValueError(f"cell ids must be unique, got duplicates {dup}")
-    done = finished_cells(cells_dir, clean=True)
-    todo = [c for c in cells if c.cell_id not in done]
+    mine = shard_cells(cells, shard)
+    if shard is None:
+        done = finished_cells(cells_dir, clean=True)
+    else:
+        done = finished_cells(cells_dir)
+        remove_cell_leftovers(cells_dir, [c.cell_id for c in mine if c.cell_id not in done])
+    todo = [c for c in mine if c.cell_id not in done]
     records = {i: done[i] for i in ids if i in done}
     executor = executor or SerialExecutor()
     from tqdm import tqdm
 
     with tqdm(
-        total=len(cells),
-        initial=len(cells) - len(todo),
+        total=len(mine),
+        initial=len(mine) - len(todo),
         unit="cell",
-        desc="cells",
+        desc="cells" if shard is None else f"cells of shard {shard}",
         disable=not progress,
         leave=False,
     ) as bar:
@@ -236,4 +274,4 @@ def execute_cells(
             bar.update(1)
             if on_done is not None:
                 on_done(cell, record)
-    return {i: records[i] for i in ids}
+    return {i: records[i] for i in ids if i in records}

@@ -35,6 +35,7 @@ times; kept apart so the summary files are identical whenever the estimates are)
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -46,6 +47,7 @@ import numpy as np
 from roft_sim.config_files import dataclass_from_mapping, jsonable, load_toml
 from roft_sim.datasets import open_sequence
 from roft_sim.errors import ConfigError
+from roft_sim.executors import Executor, Shard
 from roft_sim.faults import BernoulliDropout, FaultConfig, FixedDelay, load_faults
 from roft_sim.harness.cells import (
     CELLS_DIR,
@@ -54,9 +56,8 @@ from roft_sim.harness.cells import (
     load_cell_metrics,
     make_cell_id,
 )
-from roft_sim.harness.executors import Executor
 from roft_sim.harness.options import InitPolicy, RunOptions
-from roft_sim.harness.outputs import DELIVERIES_FILE, load_deliveries, write_json
+from roft_sim.harness.outputs import DELIVERIES_FILE, load_deliveries
 from roft_sim.harness.run_dataset import find_sequences
 from roft_sim.metrics import SequenceMetrics, concatenate_metrics, step_time_stats
 from roft_sim.report.plotting import LinePlot, save_png, stack_images
@@ -370,13 +371,18 @@ class SweepResult:
     out_dir: Path
     """The sweep folder."""
     cells: tuple[SweepCell, ...]
-    """The planned cells."""
+    """The planned cells (all shards)."""
     records: dict[str, dict[str, Any]]
-    """``cell.json`` of every cell, by id."""
+    """``cell.json`` of every finished cell, by id (every cell unless ``shard``)."""
     summary_rows: list[dict[str, Any]]
-    """One row per tracker x faults x value (pooled over sequences and seeds)."""
+    """One row per tracker x faults x value (pooled over sequences and seeds); empty for a
+    shard run, which writes no summary."""
     plots: list[Path]
     """The plots written."""
+    shard: Shard | None = None
+    """The shard this run ran (None = the whole sweep, summary written)."""
+    shard_cells: tuple[SweepCell, ...] = ()
+    """The cells of ``shard`` (empty when ``shard`` is None)."""
 
 
 def _group_key(cell: SweepCell) -> tuple[str, str, float | None]:
@@ -633,27 +639,49 @@ def run_sweep(
     executor: Executor | None = None,
     progress: bool = False,
     plots: bool = True,
+    shard: Shard | None = None,
 ) -> SweepResult:
     """Plans the grid, runs the unfinished cells, writes the summary and plots.
 
-    Resumable: run it again on the same ``out_dir`` and only the missing cells run.
+    Resumable: run it again on the same ``out_dir`` and only the missing cells run (what is
+    finished is read from disk). With ``shard`` only that shard's cells run
+    (:func:`~roft_sim.harness.cells.shard_cells`) and no summary is written: once every shard
+    has finished, a run without ``shard`` on the same folder writes it (and runs any cell still
+    missing).
 
     Raises:
         ConfigError: bad configuration (before anything runs).
         WorkUnitError: a cell failed (finished cells are kept).
     """
+    from roft_sim.datasets.atomic_files import atomic_write_text
+
     out = Path(out_dir)
     cells = plan_sweep(config)
     out.mkdir(parents=True, exist_ok=True)
-    write_json(
-        out / "sweep.json",
-        {
-            "kind": "sweep",
-            "config": jsonable(config),
-            "cells": [c.cell_id for c in cells],
-        },
+    plan = json.dumps(
+        {"kind": "sweep", "config": jsonable(config), "cells": [c.cell_id for c in cells]},
+        indent=2,
+        allow_nan=False,
     )
-    records = execute_cells(cells, out / CELLS_DIR, executor=executor, progress=progress)
+    plan_path = out / "sweep.json"
+    # Shards share the folder: leave an identical plan alone instead of racing to rewrite it.
+    if not (plan_path.is_file() and plan_path.read_text(encoding="utf-8") == plan + "\n"):
+        atomic_write_text(plan_path, plan + "\n")
+    records = execute_cells(
+        cells, out / CELLS_DIR, executor=executor, progress=progress, shard=shard
+    )
+    if shard is not None:
+        from roft_sim.harness.cells import shard_cells
+
+        return SweepResult(
+            out_dir=out,
+            cells=tuple(cells),
+            records=records,
+            summary_rows=[],
+            plots=[],
+            shard=shard,
+            shard_cells=tuple(shard_cells(cells, shard)),
+        )
     parameter = config.parameter.name if config.parameter else None
     rows, written = write_summary(
         config.name, cells, records, out, parameter=parameter, plots=plots
