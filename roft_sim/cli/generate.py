@@ -251,8 +251,9 @@ def _run(args: argparse.Namespace) -> int:
     if args.overwrite and args.resume:
         raise ConfigError("--overwrite and --resume contradict each other; pick one")
     shard = shard_from_args(args)
+    executor_from_args(args)  # checks --executor/--workers/--address (and Ray) first
     backend = require_gl_backend(os.environ)  # before MuJoCo is imported
-    executor = executor_from_args(args)  # checks --executor/--workers/--address (and Ray)
+    executor = executor_from_args(args)  # again: Ray actors get the backend just chosen
     options = GenerationOptions(
         format=args.format,
         workers=args.workers or 1,

@@ -6,7 +6,8 @@ import them by name (the Ray fixture puts this folder on the actors' ``PYTHONPAT
 - :func:`square`, :func:`count_in_worker` (+ :func:`start_counting`): plain units and per-worker
   state.
 - :func:`write_unit`: a unit that writes its result file atomically and reports progress.
-- :func:`die_on`, :func:`die_once`: units whose worker process hard-exits (``os._exit``).
+- :func:`die_on`, :func:`die_once`, :func:`run_or_die`: units whose worker process hard-exits
+  (``os._exit``).
 - :func:`write_box_dataset`: two tiny analytic Fast-YCB sequences with a detector pose set.
 - :func:`tiny_ci_scenario`, :func:`tree_hashes`, :func:`sweep_hashes`: byte-identity checks.
 """
@@ -101,6 +102,18 @@ def die_once(marker_dir: str, unit: tuple[str, int]) -> int:
         marker.write_text("x")
         os._exit(17)
     return write_unit(unit)
+
+
+def run_or_die(victim_id: str, fn: Any, cell: Any) -> Any:
+    """``fn(cell)``, but the worker hard-exits half-way through sweep cell ``victim_id`` (its
+    temporary folder is left behind, as by a crash)."""
+    if cell.cell_id == victim_id:
+        cells_dir = Path(fn.keywords["cells_dir"])
+        tmp = cells_dir / f".{cell.cell_id}.{os.getpid()}.tmp"
+        tmp.mkdir(parents=True)
+        (tmp / "pose_estimate.txt").write_text("0 0 0\n")
+        os._exit(17)
+    return fn(cell)
 
 
 def written_units(folder: Path) -> dict[str, bytes]:
