@@ -109,11 +109,11 @@ class ConsistencyResult:
 
     @property
     def worst_frame(self) -> int:
-        """The frame whose per-step average is farthest outside (or nearest to) the bounds,
-        measured in log ratio to the nearer bound."""
-        mid = np.sqrt(self.lower * self.upper)
-        return int(self.frames[int(np.argmax(np.abs(np.log(np.maximum(self.per_step, 1e-300)
-                                                              / mid))))])  # fmt: skip
+        """The frame whose per-step average is farthest from the bounds' geometric centre (in
+        log ratio): the most optimistic or most conservative step."""
+        centre = np.sqrt(self.lower * self.upper)
+        distance = np.abs(np.log(np.maximum(self.per_step, 1e-300) / centre))
+        return int(self.frames[int(np.argmax(distance))])
 
     def summary(self) -> str:
         """A readable multi-line account: verdict, average vs bounds, fractions, worst step."""

@@ -36,7 +36,8 @@ from roft_sim.faults import FaultConfig, ObservationStream
 from roft_sim.geometry.camera import CameraIntrinsics
 from roft_sim.geometry.se3 import transform_from_rt
 from roft_sim.geometry.so3 import matrix_from_rotvec
-from roft_sim.records import ESTIMATE_COVARIANCE_ORDER, Estimate, PoseTrack
+from roft_sim.records import Estimate, PoseTrack
+from roft_sim.testing.analytic_scene import AnalyticBox
 from roft_sim.trackers import Tracker, run_tracker
 
 F64 = NDArray[np.float64]
@@ -209,8 +210,6 @@ def draw_pose_scenario(
     detected = T.copy()
     detected[:, :3, 3] += rng.normal(size=(n_frames, 3)) * sd_p
     detected[:, :3, :3] = matrix_from_rotvec(rng.normal(size=(n_frames, 3)) * sd_q) @ T[:, :3, :3]
-    from roft_sim.testing.analytic_scene import AnalyticBox
-
     w_px, h_px = 8, 6
     intrinsics = CameraIntrinsics(
         fx_px=8.0, fy_px=8.0, cx_px=3.5, cy_px=2.5, width_px=w_px, height_px=h_px
@@ -239,7 +238,6 @@ def draw_pose_scenario(
         w_radps=np.zeros(3),
         covariance=P0,
     )
-    assert P0.shape == (len(ESTIMATE_COVARIANCE_ORDER),) * 2
     return PoseScenario(sequence=sequence, initial=initial, truth=truth)
 
 
