@@ -15,9 +15,9 @@ schedules come from roft_sim.testing.fault_strategies through roft_sim.faults.
 from __future__ import annotations
 
 import pytest
-from conftest import HORIZON_FRAMES, POSE_ONLY, ROFT_NO_SYNC, ROFT_TINY, budget
 from hypothesis import HealthCheck, Phase, find, given, settings
 from hypothesis import strategies as st
+from property_settings import HORIZON_FRAMES, POSE_ONLY, ROFT_NO_SYNC, ROFT_TINY, budget
 
 from roft_sim.faults import FaultConfig, FixedDelay, PoseStreamFaults, Rate, Reorder, load_faults
 from roft_sim.testing import FaultedStream, check_delay_invariance, pose_delays, tracker_for

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import POSE_ONLY, ROFT_TINY, budget
 from hypothesis import HealthCheck, given, settings
+from property_settings import POSE_ONLY, ROFT_TINY, budget
 
 from roft_sim.faults import load_faults
 from roft_sim.testing import FaultedStream, check_determinism, tracker_for

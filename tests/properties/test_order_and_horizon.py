@@ -14,9 +14,9 @@ import dataclasses
 
 import numpy as np
 import pytest
-from conftest import HORIZON_FRAMES, POSE_ONLY, ROFT_TINY, budget
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from property_settings import HORIZON_FRAMES, POSE_ONLY, ROFT_TINY, budget
 
 from roft_sim.records import PoseDetection
 from roft_sim.testing import (

@@ -16,9 +16,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import budget
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
+from property_settings import budget
 
 from roft_sim.faults import Blackout, FaultConfig, MaskStreamFaults, PoseStreamFaults, load_faults
 from roft_sim.testing import FaultedStream, check_recovery, pose_errors, tracker_for

@@ -12,9 +12,9 @@ default run (about 15 s for ROFT); ``--hypothesis-profile=thorough`` runs 10000.
 from __future__ import annotations
 
 import pytest
-from conftest import POSE_ONLY, ROFT_NO_SYNC, ROFT_TINY, budget
 from hypothesis import HealthCheck, event, example, given, settings
 from hypothesis import strategies as st
+from property_settings import POSE_ONLY, ROFT_NO_SYNC, ROFT_TINY, budget
 
 from roft_sim.faults import (
     BernoulliDropout,
