@@ -51,8 +51,9 @@ class Tracker(Protocol):
         """Starts a new sequence.
 
         Args:
-            initial: initial pose and velocity (the harness may give the ground truth of frame 0
-                or nothing); None means "initialise from the first pose that arrives".
+            initial: the pose and velocity AT frame ``initial.k`` (the harness gives the ground
+                truth of the first frame, with that frame's ``k``, or nothing); None means
+                "initialise from the first pose that arrives".
         """
         ...
 

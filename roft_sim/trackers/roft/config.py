@@ -3,7 +3,7 @@
 Every default is the value of hsp-iit/roft's ``config_fast_ycb.cfg`` as run by its test scripts
 (see docs/roft.md, "Parameters"). Variances are variances (not standard deviations), as in the
 reference. Load from TOML with :func:`roft_sim.trackers.load_tracker_config`; the nested tables
-are ``[mask]``, ``[velocity]``, ``[pose]``, ``[outlier_rejection]`` and ``[sync]``.
+are ``[mask]``, ``[velocity]``, ``[pose]``, ``[outlier_rejection]``, ``[gate]`` and ``[sync]``.
 
 The Table IV ablations of the paper are switches here; :func:`ablation_config` returns the
 configuration the reference test scripts use for each of them.
@@ -23,6 +23,7 @@ __all__ = [
     "VelocityKFConfig",
     "PoseUKFConfig",
     "OutlierRejectionConfig",
+    "PoseGateConfig",
     "PoseSyncConfig",
     "RoftConfig",
     "ABLATIONS",
@@ -214,6 +215,37 @@ class OutlierRejectionConfig:
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
+class PoseGateConfig:
+    """Rejects a pose far from the filter's prediction at its capture frame (not in the
+    reference). The depth test cannot see 180-degree flips of box-like objects (their depth is the
+    same) nor sideways jumps; this gate catches both, in physical units rather than with the
+    filter's own covariance, whose tuned measurement noise is far smaller than a detector's real
+    error. So that a wrong filter cannot lock out correct poses for ever, a pose is accepted
+    whatever its distance after ``max_consecutive_rejections`` rejected ones in a row."""
+
+    enable: bool = False
+    """Run the gate on every pose correction (ROFT default: off, as the reference)."""
+    max_translation_m: float = 0.10
+    """Largest accepted distance between the pose's position and the prediction [m]."""
+    max_rotation_deg: float = 45.0
+    """Largest accepted angle between the pose's orientation and the prediction [deg]."""
+    max_consecutive_rejections: int = 2
+    """After this many poses rejected in a row (in capture order), the next one is accepted."""
+
+    def __post_init__(self) -> None:
+        _check_positive("gate", "max_translation_m", (self.max_translation_m,))
+        if not (math.isfinite(self.max_rotation_deg) and 0 < self.max_rotation_deg <= 180):
+            raise ConfigError(
+                f"gate.max_rotation_deg must be in (0, 180], got {self.max_rotation_deg}"
+            )
+        if self.max_consecutive_rejections < 0:
+            raise ConfigError(
+                f"gate.max_consecutive_rejections must be >= 0, got "
+                f"{self.max_consecutive_rejections}"
+            )
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
 class PoseSyncConfig:
     """Buffers for delayed poses and masks."""
 
@@ -249,6 +281,7 @@ class RoftConfig:
     velocity: VelocityKFConfig = field(default_factory=VelocityKFConfig)
     pose: PoseUKFConfig = field(default_factory=PoseUKFConfig)
     outlier_rejection: OutlierRejectionConfig = field(default_factory=OutlierRejectionConfig)
+    gate: PoseGateConfig = field(default_factory=PoseGateConfig)
     sync: PoseSyncConfig = field(default_factory=PoseSyncConfig)
 
     def __post_init__(self) -> None:

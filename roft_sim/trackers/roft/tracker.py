@@ -33,7 +33,7 @@ from numpy.typing import NDArray
 
 from roft_sim.errors import PluginError
 from roft_sim.geometry.se3 import transform_from_pq
-from roft_sim.geometry.so3 import matrix_from_quat, quat_from_matrix
+from roft_sim.geometry.so3 import matrix_from_quat, quat_angle, quat_from_matrix
 from roft_sim.records import (
     Estimate,
     MaskDetection,
@@ -121,17 +121,27 @@ class RoftTracker:
         return self._config
 
     def reset(self, initial: Estimate | None) -> None:
-        """Starts a new sequence; ``initial`` gives the belief before the first frame, None
-        means "initialise from the earliest pose received"."""
+        """Starts a new sequence.
+
+        Args:
+            initial: the pose and velocity at frame ``initial.k`` (usually the first frame the
+                tracker will see, e.g. its ground truth); its covariance, if given, is the
+                initial covariance. When ``initial.k`` is the first observed frame, that frame
+                is corrected without a prediction; when it is earlier, the filter predicts over
+                one frame. None means "initialise from the earliest pose received".
+        """
         self._mask_sync.reset()
         self._velocity_kf.reset()
         self._frames: dict[int, _Frame] = {}
         self._beliefs: dict[int, PoseBelief] = {}
+        self._gate_streaks: dict[int, int] = {}  # frame -> poses gated in a row after it
         self._poses: dict[int, list[_Pose]] = {}
         self._known_ids: dict[int, int] = {}  # detection_id -> capture frame
         self._decisions: dict[int, bool] = {}  # detection_id -> accepted
+        self._gated: set[int] = set()  # detection_ids rejected by the gate (vs depth test)
         self._init_pose: _Pose | None = None
         self._initial = initial
+        self._no_predict_frame: int | None = None
         self._first_k: int | None = None
         self._last_k: int | None = None
         self._last_t: float | None = None
@@ -229,7 +239,15 @@ class RoftTracker:
         if self._initial is not None:
             if not self._beliefs:
                 first = self._first_k if self._first_k is not None else k
+                if self._initial.k > first:
+                    raise ValueError(
+                        f"the initial estimate describes frame {self._initial.k}, after the first "
+                        f"observed frame {first}; give the estimate of frame {first} or earlier"
+                    )
+                # stored where the replay restarts (before `first`); when it describes `first`
+                # itself, frame `first` is corrected without a prediction (see _advance)
                 self._beliefs[first - 1] = self._initial_belief_from_estimate(self._initial)
+                self._no_predict_frame = first if self._initial.k == first else None
         else:
             earliest = self._earliest_pose()
             init = self._init_pose
@@ -242,6 +260,7 @@ class RoftTracker:
                 prior = self._ukf.initial_belief(earliest.p_m, earliest.q_wxyz)
                 for j in [j for j in self._beliefs if j >= c - 1]:
                     del self._beliefs[j]
+                    self._gate_streaks.pop(j, None)
                 self._beliefs[c - 1] = prior
                 return c, prior
             if init is None:
@@ -260,37 +279,77 @@ class RoftTracker:
             belief = PoseBelief(x=belief.x, q=belief.q, P=0.5 * (P + P.T))
         return belief
 
+    def _gate_rejects(self, predicted: PoseBelief, pose: _Pose, streak: int) -> bool:
+        """True when the pose is too far from the prediction (and the streak allows it)."""
+        gate = self._config.gate
+        if not gate.enable or streak >= gate.max_consecutive_rejections:
+            return False
+        distance_m = float(np.linalg.norm(pose.p_m - predicted.x[6:9]))
+        angle_deg = float(np.degrees(quat_angle(pose.q_wxyz, predicted.q)))
+        return distance_m > gate.max_translation_m or angle_deg > gate.max_rotation_deg
+
     def _correct_with_pose(
-        self, predicted: PoseBelief, twist: F64 | None, pose: _Pose, frame: _Frame, first: bool
-    ) -> PoseBelief:
-        """One pose correction (with the frame's velocity on the first pose of the frame), with
-        the depth outlier test unless the pose is the one that initialised the filter."""
+        self,
+        predicted: PoseBelief,
+        twist: F64 | None,
+        pose: _Pose,
+        frame: _Frame,
+        first: bool,
+        streak: int,
+    ) -> tuple[PoseBelief, int]:
+        """One pose correction (with the frame's velocity on the first pose of the frame),
+        behind the gate and the depth outlier test unless the pose initialised the filter.
+
+        Returns:
+            The corrected belief and the number of poses gated in a row after this one.
+        """
+        if pose is self._init_pose:
+            self._decisions[pose.detection_id] = True
+            return (
+                self._ukf.correct(
+                    predicted, twist=twist, p_meas_m=pose.p_m, q_meas_wxyz=pose.q_wxyz
+                ),
+                0,
+            )
+        without_pose = self._ukf.correct(predicted, twist=twist) if first else predicted
+        if self._gate_rejects(predicted, pose, streak):
+            self._decisions[pose.detection_id] = False
+            self._gated.add(pose.detection_id)
+            return without_pose, streak + 1
+        self._gated.discard(pose.detection_id)
         with_pose = self._ukf.correct(
             predicted, twist=twist, p_meas_m=pose.p_m, q_meas_wxyz=pose.q_wxyz
         )
         test = self._outlier_test
-        if test is None or pose is self._init_pose:
+        if test is None:
             self._decisions[pose.detection_id] = True
-            return with_pose
-        without_pose = self._ukf.correct(predicted, twist=twist) if first else predicted
+            return with_pose, 0
         reject = test.reject(
             transform_from_pq(with_pose.x[6:9], with_pose.q),
             transform_from_pq(without_pose.x[6:9], without_pose.q),
             frame.samples,
         )
         self._decisions[pose.detection_id] = not reject
-        return without_pose if reject else with_pose
+        return (without_pose if reject else with_pose), 0
 
     def _advance(self, j: int, prior: PoseBelief) -> PoseBelief:
-        """Predict from j-1 to j and correct with everything known about frame j."""
+        """Predict from j-1 to j and correct with everything known about frame j (also stores
+        the gate's rejection streak after j, so that a replay from any frame restores it)."""
         frame = self._frames[j]
-        belief = self._ukf.predict(prior, frame.dt_s)
+        # the initial estimate, when it describes frame j itself, needs no prediction
+        no_predict = j == self._no_predict_frame
+        belief = prior if no_predict else self._ukf.predict(prior, frame.dt_s)
         twist = frame.twist if self._config.use_velocity else None
+        streak = self._gate_streaks.get(j - 1, 0)
         poses = sorted(self._poses.get(j, []), key=lambda p: p.detection_id)
         if not self._config.use_pose or not poses:
-            return self._ukf.correct(belief, twist=twist)
-        for i, pose in enumerate(poses):
-            belief = self._correct_with_pose(belief, twist if i == 0 else None, pose, frame, i == 0)
+            belief = self._ukf.correct(belief, twist=twist)
+        else:
+            for i, pose in enumerate(poses):
+                belief, streak = self._correct_with_pose(
+                    belief, twist if i == 0 else None, pose, frame, i == 0, streak
+                )
+        self._gate_streaks[j] = streak
         return belief
 
     # ------------------------------------------------------------------ the protocol
@@ -346,10 +405,13 @@ class RoftTracker:
             p.detection_id for p in new if self._decisions.get(p.detection_id) is False
         )
         self._totals["poses_rejected"] += len(rejected)
+        gated = sum(1 for i in rejected if i in self._gated)
+        self._totals["poses_gated"] += gated
         diagnostics: dict[str, float | int | str] = {
             "flow_pixels": flow_pixels,
             "mask_pixels": len(pixels) if pixels is not None else 0,
             "replayed_frames": replay,
+            "poses_gated": gated,
             **{f"mask_{name}": n for name, n in mask_counts.items()},
             **{f"poses_dropped_{reason}": n for reason, n in dropped.items()},
             **{f"total_{name}": n for name, n in self._totals.items()},
@@ -388,10 +450,13 @@ class RoftTracker:
             del self._frames[j]
         for j in [j for j in self._beliefs if j < oldest - 1]:
             del self._beliefs[j]
+        for j in [j for j in self._gate_streaks if j < oldest - 1]:
+            del self._gate_streaks[j]
         for c in [c for c in self._poses if c < oldest]:
             for pose in self._poses.pop(c):
                 self._known_ids.pop(pose.detection_id, None)
                 self._decisions.pop(pose.detection_id, None)
+                self._gated.discard(pose.detection_id)
 
     @property
     def pose_belief(self) -> PoseBelief | None:
