@@ -19,18 +19,26 @@ from hypothesis import HealthCheck, Phase, find, given, settings
 from hypothesis import strategies as st
 from property_settings import HORIZON_FRAMES, POSE_ONLY, ROFT_NO_SYNC, ROFT_TINY, budget
 
-from roft_sim.faults import FaultConfig, FixedDelay, PoseStreamFaults, Rate, Reorder, load_faults
+from roft_sim.faults import (
+    FaultConfig,
+    FixedDelay,
+    PoseStreamFaults,
+    Rate,
+    Reorder,
+    UniformDelay,
+    load_faults,
+)
 from roft_sim.testing import FaultedStream, check_delay_invariance, pose_delays, tracker_for
 from roft_sim.testing.stream_strategies import faulted_streams, pose_timing_faults
 
 SLOW_OK = [HealthCheck.too_slow, HealthCheck.data_too_large]
 
 
-def _paper_pose(*faults) -> FaultConfig:
+def _paper_pose(*faults, first_result="undelayed") -> FaultConfig:
     paper = load_faults("paper")
     return FaultConfig(
         name="regression",
-        pose=PoseStreamFaults(first_result="undelayed", faults=faults),
+        pose=PoseStreamFaults(first_result=first_result, faults=faults),
         mask=paper.mask,
     )
 
@@ -47,8 +55,9 @@ def _holds(stream: FaultedStream, tracker: str, config=None):
 def regression_stream(roft_seq):
     """Reordered 10 Hz poses, 4-12 frames late: the kind of schedule that broke naive fusion."""
 
-    def make(*faults, seed=0):
-        return FaultedStream(sequence=roft_seq, faults=_paper_pose(*faults), seed=seed)
+    def make(*faults, seed=0, first_result="undelayed"):
+        faults = _paper_pose(*faults, first_result=first_result)
+        return FaultedStream(sequence=roft_seq, faults=faults, seed=seed)
 
     return make
 
@@ -94,6 +103,32 @@ def test_zero_delay_stream_is_the_undelayed_run(regression_stream):
     assert set(pose_delays(obs)) == {0}
     result = _holds(stream, "naive-delay", POSE_ONLY).raise_if_failed()
     assert result.frames_checked == len(obs)
+
+
+def test_regression_jitter_across_the_horizon(regression_stream):
+    """Found while writing the suite: jitter 0-13 frames, the first pose delayed, seed 3. The
+    first poses arrive out of order (captures 2, 5, 6 at frame 10, capture 1 at 11: the filter
+    initialises, then re-initialises), and the poses of frames 0 and 3 arrive 13 frames late,
+    past the 12-frame horizon: the zero-delay run must leave exactly those two out (a tracker
+    configured with another horizon than max_delay_frames fails here)."""
+    stream = regression_stream(
+        UniformDelay(min_frames=0, max_frames=13), seed=3, first_result="delayed"
+    )
+    delays = pose_delays(stream.observations())
+    assert delays.count(13) == 2
+    for tracker, config in (("roft", ROFT_TINY), ("pose-only-ukf", POSE_ONLY)):
+        _holds(stream, tracker, config).raise_if_failed()
+
+
+def test_regression_minimal_counterexample_of_apply_as_current(regression_stream):
+    """The schedule hypothesis shrinks the mutation check below to: a pose on every frame, each
+    one frame late. naive-delay and ROFT without pose sync fuse each pose one frame late; at
+    the last frame (settled: its own pose arrives after the end) they differ by centimetres."""
+    stream = regression_stream(FixedDelay(frames=1), first_result="delayed")
+    for tracker, config in (("naive-delay", POSE_ONLY), ("roft", ROFT_NO_SYNC)):
+        result = _holds(stream, tracker, config)
+        assert not result.passed and result.worst["position_m"] > 0.005
+    _holds(stream, "roft", ROFT_TINY).raise_if_failed()
 
 
 # --------------------------------------------------------------------------- mutation checks
