@@ -114,8 +114,9 @@ def test_velocity_kf_that_underrates_the_flow_noise_fails():
 
 
 def _without_gate(config: PoseOnlyUkfConfig) -> PoseOnlyUkfConfig:
-    """The pose UKF alone: a distance gate on poses (where the tracker has one) is a heuristic
-    outside the filter's model; on truth drawn from that model it rejects good poses."""
+    """The pose UKF alone: the baselines' pose distance gate is a heuristic outside the filter's
+    model; on truth drawn from that model, under the paper delays, it rejects 45 % of the good
+    poses and makes the filter optimistic (ANEES 6.95, 40 % of the steps above 7.00)."""
     gate = getattr(config, "gate", None)
     if gate is None or not gate.enable:
         return config
