@@ -138,6 +138,8 @@ class LocalProcessExecutor:
                     except Exception as e:
                         raise unit_failed(unit, e) from e
                     yield unit, result
+            # Workers flush their progress queue when they exit: count everything reported.
+            pool.shutdown(wait=True)
             drain()
         except BaseException:
             # Stop now rather than after the units in flight (also when the caller stops

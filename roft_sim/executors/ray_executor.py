@@ -214,7 +214,10 @@ class RayExecutor:
         actor_class = ray.remote(_RayWorker)
         n = min(self.workers, len(units))
         cwd = os.getcwd()
-        actors = [actor_class.options(**options).remote(setup, progress, cwd) for _ in range(n)]
+        # One copy of the set-up (e.g. every sequence's scenario and writer) in the object store,
+        # referenced by this frame until the map ends, so a restarted actor can read it again.
+        setup_ref = ray.put(setup)
+        actors = [actor_class.options(**options).remote(setup_ref, progress, cwd) for _ in range(n)]
         fn_ref = ray.put(fn)
         pending = list(reversed(units))
         running: dict[Any, tuple[U, int]] = {}
