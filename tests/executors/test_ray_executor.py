@@ -149,3 +149,18 @@ def test_a_dataset_generated_on_ray_gives_the_serial_bytes(local_ray, tmp_path):
     )
     assert summary.finished and summary.workers == 2 and sum(seen) == 9
     assert tree_hashes(tmp_path / "ray") == tree_hashes(tmp_path / "serial")
+
+
+def test_sweep_cli_with_executor_ray_gives_the_serial_bytes(local_ray, tmp_path, capsys):
+    """`roft-sim sweep --executor ray` (here joining the module's Ray instance) writes the same
+    folder as the in-process CLI run, and --workers defaults to the cluster's CPUs."""
+    from roft_sim.cli import main
+
+    data = write_box_dataset(tmp_path / "data")
+    args = ["sweep", str(data), "--trackers", "detector-hold", "--flow", "none", "--masks", "none",
+            "--no-rgb", "--param", "dropout=0,0.5", "--no-plots", "--no-progress"]  # fmt: skip
+    assert main([*args, "--out", str(tmp_path / "serial" / "s")]) == 0
+    assert main([*args, "--out", str(tmp_path / "ray" / "s"), "--executor", "ray", "--json"]) == 0
+    assert '"cells": 4' in capsys.readouterr().out
+    assert sweep_hashes(tmp_path / "ray" / "s") == sweep_hashes(tmp_path / "serial" / "s")
+    assert ray.is_initialized()
