@@ -72,10 +72,14 @@ class _CurrentStderrHandler(logging.StreamHandler):
 
 
 def _configure_logging(verbose: int, quiet: bool) -> None:
+    """roft_sim's own loggers at INFO (-v too, -vv DEBUG, -q WARNING); other libraries' loggers
+    only from WARNING (INFO with -vv)."""
     level = logging.WARNING if quiet else (logging.DEBUG if verbose > 1 else logging.INFO)
     handler = _CurrentStderrHandler()
     handler.setFormatter(logging.Formatter("%(levelname)s %(name)s: %(message)s"))
-    logging.basicConfig(level=level, handlers=[handler], force=True)
+    others = logging.INFO if verbose > 1 else logging.WARNING
+    logging.basicConfig(level=others, handlers=[handler], force=True)
+    logging.getLogger("roft_sim").setLevel(level)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

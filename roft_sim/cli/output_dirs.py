@@ -10,11 +10,14 @@ from roft_sim.errors import ConfigError
 __all__ = ["prepare_output_dir"]
 
 
-def prepare_output_dir(path: str | Path, *, overwrite: bool = False, resume: bool = False) -> Path:
+def prepare_output_dir(
+    path: str | Path, *, overwrite: bool = False, resume: bool = False, can_resume: bool = True
+) -> Path:
     """Creates ``path`` or checks that it may be written.
 
     A non-empty directory is refused unless ``overwrite`` (it is emptied) or ``resume`` (kept as
-    is, so finished work is not redone).
+    is, so finished work is not redone). ``can_resume`` False: the verb has no ``--resume``, so
+    the message does not suggest it.
 
     Raises:
         ConfigError: the path is a file, or a non-empty directory without overwrite/resume.
@@ -28,9 +31,9 @@ def prepare_output_dir(path: str | Path, *, overwrite: bool = False, resume: boo
         if overwrite:
             shutil.rmtree(path)
         elif not resume:
+            hint = " or --resume to continue an interrupted run" if can_resume else ""
             raise ConfigError(
-                f"output directory {str(path)!r} is not empty; pass --overwrite to replace it"
-                " or --resume to continue an interrupted run"
+                f"output directory {str(path)!r} is not empty; pass --overwrite to replace it{hint}"
             )
     path.mkdir(parents=True, exist_ok=True)
     return path

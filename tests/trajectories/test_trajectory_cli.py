@@ -1,4 +1,4 @@
-"""``roft-sim trajectory stats|export`` and ``roft-sim demo``, run in-process."""
+"""``roft-sim trajectory stats|export``, run in-process."""
 
 from __future__ import annotations
 
@@ -151,22 +151,6 @@ def test_cli_errors_exit_2_for_usage_and_1_for_bad_files(
     argv = [a.format(bvh=bvh_paths["002_05"], tmp=tmp_path) for a in argv]
     assert main(argv) == code
     assert message in capsys.readouterr().err
-
-
-def test_demo_writes_the_trajectory_tour(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
-    out = tmp_path / "demo"
-    assert main(["demo", "--out", str(out)]) == 0
-    printed = capsys.readouterr().out
-    assert "linear [m/s]" in printed and "angular [deg/s]" in printed
-    stats = json.loads((out / "speed_statistics.json").read_text())
-    assert stats["linear_speed_mps"]["peak"] == pytest.approx(0.6, rel=0.1)
-    assert stats["angular_speed_dps"]["peak"] == pytest.approx(266.0, rel=0.1)
-    meta = json.loads((out / "config.json").read_text())
-    assert meta["seed"] == 0 and meta["trajectory"]["kind"] == "synthetic"
-    assert csv_header(out / "trajectory.csv").startswith(HEADER)
-    assert len(read_trajectory_csv(out / "trajectory.csv")) == 301
-    assert main(["demo", "--out", str(out)]) == 2  # not empty
-    assert main(["demo", "--out", str(out), "--overwrite"]) == 0
 
 
 def test_stats_ignore_placement_export_needs_it_in_view(
