@@ -39,9 +39,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument(
         "--resolution",
-        default="640x480",
+        default="640x360",
         metavar="WxH",
-        help="render resolution (default 640x480; Fast-YCB is 1280x720)",
+        help="render resolution (default 640x360, half of Fast-YCB's 1280x720)",
     )
     parser.add_argument(
         "--trackers",

@@ -9,6 +9,7 @@ model written beside the data), and opens the writers (creating or resuming the 
 from __future__ import annotations
 
 import dataclasses
+import logging
 import re
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -24,6 +25,8 @@ from roft_sim.datasets import SequenceWriter, open_sequence, open_writer
 from roft_sim.datasets.metadata import dumps_json
 from roft_sim.errors import ConfigError
 from roft_sim.scenario import Scenario
+
+_log = logging.getLogger(__name__)
 
 __all__ = [
     "ScenarioOverrides",
@@ -77,6 +80,16 @@ class ScenarioOverrides:
         if self.resolution is not None:
             width, height = self.resolution
             k = scenario.intrinsics.resized(width, height)
+            before = scenario.intrinsics.width_px / scenario.intrinsics.height_px
+            if abs(width / height - before) > 1e-3 * before:
+                _log.warning(
+                    "%s: %dx%d changes the aspect ratio of the %dx%d camera; the field of view is "
+                    "kept, so pixels are no longer square (fx %.1f, fy %.1f px); for square pixels "
+                    "use %dx%d",
+                    scenario.name, width, height, scenario.intrinsics.width_px,
+                    scenario.intrinsics.height_px, k.fx_px, k.fy_px, width,
+                    round(width / before),
+                )  # fmt: skip
             changes["camera"] = dataclasses.replace(
                 scenario.camera,
                 width_px=k.width_px,

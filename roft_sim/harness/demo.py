@@ -37,8 +37,9 @@ class DemoSettings:
 
     frames: int = 150
     """Frames of the generated sequence (5 s at 30 fps)."""
-    resolution: tuple[int, int] = (640, 480)
-    """Render resolution (width, height) [px]; the Fast-YCB intrinsics are scaled to it."""
+    resolution: tuple[int, int] = (640, 360)
+    """Render resolution (width, height) [px]; the Fast-YCB intrinsics (1280x720) are scaled to
+    it (half size: square pixels, fx = fy = 614.7 px)."""
     trackers: tuple[str, ...] = ("roft", "detector-hold", "naive-delay")
     """Trackers to compare, run one after the other on the same observation stream."""
     faults: str = "paper"

@@ -12,7 +12,7 @@ from roft_sim.cli import main
 @pytest.mark.render
 def test_demo_generates_a_sequence_tracks_it_and_prints_the_comparison(tmp_path, capsys):
     out = tmp_path / "demo"
-    argv = ["demo", "--out", str(out), "--frames", "18", "--resolution", "160x120",
+    argv = ["demo", "--out", str(out), "--frames", "18", "--resolution", "160x90",
             "--trackers", "roft,detector-hold", "--no-progress"]  # fmt: skip
     assert main(argv) == 0
     printed = capsys.readouterr().out
