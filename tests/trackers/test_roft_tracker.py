@@ -34,7 +34,7 @@ from roft_sim.trackers.roft import (
     VelocityKFConfig,
     ablation_config,
 )
-from roft_sim.trackers.roft.config import PoseSyncConfig
+from roft_sim.trackers.roft.config import PoseGateConfig, PoseSyncConfig
 
 TINY = RoftConfig(velocity=VelocityKFConfig(subsampling_stride=5))
 """On 64x48 images the object has ~200 pixels: a smaller stride keeps the flow update alive."""
@@ -71,12 +71,23 @@ def _assert_estimates_equal(a: Estimate, b: Estimate, atol: float = 1e-9) -> Non
     np.testing.assert_allclose(a.covariance, b.covariance, rtol=0, atol=atol)
 
 
+GATED = dataclasses.replace(
+    TINY,
+    gate=PoseGateConfig(
+        enable=True, max_translation_m=0.03, max_rotation_deg=8.0, max_consecutive_rejections=1
+    ),
+)
+"""With the pose gate at tight bounds, so that the perturbed test poses are gated often."""
+
+
+@pytest.mark.parametrize("config", [TINY, GATED], ids=["reference", "gated"])
 @settings(max_examples=scaled_examples(20))
 @given(data=st.data())
-def test_replay_makes_delayed_poses_exact(tiny_seq, data):
+def test_replay_makes_delayed_poses_exact(tiny_seq, config, data):
     """After every pose captured up to frame k has arrived, the estimate at k equals (1e-9) the
     estimate of a run in which every pose arrived at its capture frame: any delays 0-15,
-    arrival orders, outliers (the depth test runs in both)."""
+    arrival orders, outliers (the depth test runs in both). With the pose gate too: its
+    decisions depend only on the replayed beliefs and the rejection streak stored per frame."""
     seq = tiny_seq
     n = len(seq)
     schedule, rng = data.draw(pose_deliveries(n))
@@ -84,7 +95,7 @@ def test_replay_makes_delayed_poses_exact(tiny_seq, data):
     delayed = [Delivery(c, c + d, i, poses[i]) for c, d, i, _ in schedule if c + d < n]
     prompt = [Delivery(c, c, i, poses[i]) for c, _, i, _ in schedule]
     masks = paper_schedule(n, first_id=1000)
-    tracker = RoftTracker(TINY, make_context(seq))
+    tracker = RoftTracker(config, make_context(seq))
     est_delayed = run(tracker, build_observations(seq, poses=delayed, masks=masks))
     est_prompt = run(tracker, build_observations(seq, poses=prompt, masks=masks))
     for k in range(n):
