@@ -80,6 +80,30 @@ class SweepCell:
     options: RunOptions
     """The resolved run options (tracker, its config, faults, inputs, seed)."""
 
+    @classmethod
+    def create(
+        cls,
+        *,
+        label: str,
+        fault_label: str,
+        parameter: str | None,
+        value: float | None,
+        sequence_path: str,
+        sequence_name: str,
+        options: RunOptions,
+    ) -> SweepCell:
+        """A cell whose ``cell_id`` is derived from its configuration (:func:`make_cell_id`)."""
+        fields = {
+            "label": label,
+            "fault_label": fault_label,
+            "parameter": parameter,
+            "value": value,
+            "sequence_path": sequence_path,
+            "sequence_name": sequence_name,
+            "options": options,
+        }
+        return cls(cell_id=make_cell_id(**fields), **fields)
+
     def __repr__(self) -> str:
         return f"SweepCell({self.cell_id})"
 

@@ -31,7 +31,6 @@ from roft_sim.harness.cells import (
     SweepCell,
     execute_cells,
     load_cell_metrics,
-    make_cell_id,
 )
 from roft_sim.harness.executors import Executor
 from roft_sim.harness.options import RunOptions
@@ -202,16 +201,7 @@ def plan_paper(
                 invalid="exclude",
             )
             cells.append(
-                SweepCell(
-                    cell_id=make_cell_id(
-                        label=row.key,
-                        fault_label=PAPER_FAULTS,
-                        parameter=None,
-                        value=None,
-                        sequence_name=seq.name,
-                        sequence_path=path,
-                        options=options,
-                    ),
+                SweepCell.create(
                     label=row.key,
                     fault_label=PAPER_FAULTS,
                     parameter=None,

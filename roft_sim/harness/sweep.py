@@ -54,14 +54,19 @@ from roft_sim.harness.cells import (
     SweepCell,
     execute_cells,
     load_cell_metrics,
-    make_cell_id,
 )
 from roft_sim.harness.options import InitPolicy, RunOptions
 from roft_sim.harness.outputs import DELIVERIES_FILE, load_deliveries
 from roft_sim.harness.run_dataset import find_sequences
 from roft_sim.metrics import SequenceMetrics, concatenate_metrics, step_time_stats
 from roft_sim.report.plotting import LinePlot, save_png, stack_images
-from roft_sim.report.tables import Column, csv_table, latex_table, markdown_table
+from roft_sim.report.tables import (
+    ERROR_COLUMNS,
+    Column,
+    csv_table,
+    latex_table,
+    markdown_table,
+)
 from roft_sim.trackers import get_tracker_spec, load_tracker_config
 
 __all__ = [
@@ -299,16 +304,7 @@ def plan_sweep(config: SweepConfig) -> list[SweepCell]:
                         )
                         parameter = config.parameter.name if config.parameter else None
                         cells.append(
-                            SweepCell(
-                                cell_id=make_cell_id(
-                                    label=label,
-                                    fault_label=fault_label,
-                                    parameter=parameter,
-                                    value=value,
-                                    sequence_name=seq.name,
-                                    sequence_path=path,
-                                    options=options,
-                                ),
+                            SweepCell.create(
                                 label=label,
                                 fault_label=fault_label,
                                 parameter=parameter,
@@ -328,11 +324,7 @@ SUMMARY_COLUMNS: tuple[Column, ...] = (
     Column("value", "value", "g"),
     Column("sequences", "sequences", "d"),
     Column("frames", "frames", "d"),
-    Column("add_auc_pct", "ADD-AUC %", ".2f"),
-    Column("rmse_t_cm", "e_t cm", ".2f"),
-    Column("rmse_a_deg", "e_a deg", ".2f"),
-    Column("rmse_v_cmps", "e_v cm/s", ".2f"),
-    Column("rmse_w_dps", "e_w deg/s", ".2f"),
+    *ERROR_COLUMNS,
 )
 """Columns of ``summary.*`` (deterministic: no timing)."""
 
@@ -344,11 +336,7 @@ _CELL_COLUMNS: tuple[Column, ...] = (
     Column("sequence", "sequence", align="left"),
     Column("seed", "seed", "d"),
     Column("frames", "frames", "d"),
-    Column("add_auc_pct", "ADD-AUC %", ".2f"),
-    Column("rmse_t_cm", "e_t cm", ".2f"),
-    Column("rmse_a_deg", "e_a deg", ".2f"),
-    Column("rmse_v_cmps", "e_v cm/s", ".2f"),
-    Column("rmse_w_dps", "e_w deg/s", ".2f"),
+    *ERROR_COLUMNS,
 )
 
 _TIMING_COLUMNS: tuple[Column, ...] = (

@@ -21,6 +21,7 @@ __all__ = [
     "markdown_table",
     "csv_table",
     "latex_table",
+    "ERROR_COLUMNS",
     "METRIC_COLUMNS",
 ]
 
@@ -41,12 +42,17 @@ class Column:
     """``left`` or ``right``."""
 
 
-METRIC_COLUMNS: tuple[Column, ...] = (
+ERROR_COLUMNS: tuple[Column, ...] = (
     Column("add_auc_pct", "ADD-AUC %", ".2f"),
     Column("rmse_t_cm", "e_t cm", ".2f"),
     Column("rmse_a_deg", "e_a deg", ".2f"),
     Column("rmse_v_cmps", "e_v cm/s", ".2f"),
     Column("rmse_w_dps", "e_w deg/s", ".2f"),
+)
+"""The pose and velocity error columns (keys of ``metrics.json`` entries)."""
+
+METRIC_COLUMNS: tuple[Column, ...] = (
+    *ERROR_COLUMNS,
     Column("frames", "frames", "d"),
     Column("time_median_ms", "step ms (median)", ".2f"),
     Column("time_p95_ms", "step ms (p95)", ".2f"),
