@@ -1,14 +1,18 @@
 """The example external plugin (examples/tracker_plugin) found through the entry-point registry.
 
-The slow test pip-installs the package into a temporary folder (``pip install --no-deps
---target``; pip builds it in an isolated environment, which needs the package index, or
-locally when setuptools can build wheels without it). The fast test registers the same entry
-point by hand (a ``.dist-info`` folder with the ``entry_points.txt`` pip would write), so
-discovery and the tracker loop are checked in every run.
+One test pip-installs the package (from a copy, into a temporary folder: ``pip install
+--no-deps --target``; pip builds it locally, or in an isolated environment when the local
+setuptools cannot, which needs the package index) and runs it with ``roft-sim run`` on a tiny
+dataset on disk, as a user would. The other registers the same entry point by hand (a
+``.dist-info`` folder with the ``entry_points.txt`` pip would write) and checks the tracker's
+output exactly.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import json
+import shutil
 import subprocess
 import sys
 import tomllib
@@ -20,6 +24,7 @@ import pytest
 from observation_schedules import build_observations, make_context, paper_schedule
 
 from roft_sim.cli import main
+from roft_sim.datasets import write_sequence
 from roft_sim.geometry import matrix_from_rotvec, rotvec_from_matrix
 from roft_sim.trackers import create_tracker, discover_trackers, load_tracker_config, run_tracker
 
@@ -76,16 +81,17 @@ def test_example_plugin_registered_by_its_entry_point(
     assert NAME in capsys.readouterr().out
 
 
-@pytest.mark.slow
-def test_example_plugin_pip_installs_and_runs(
-    tmp_path, monkeypatch, tiny_seq, clean_plugin_modules
+def test_example_plugin_pip_installs_and_runs_through_roft_sim_run(
+    tmp_path, monkeypatch, tiny_seq, clean_plugin_modules, capsys
 ):
+    source = tmp_path / "src"
+    shutil.copytree(EXAMPLE, source, ignore=shutil.ignore_patterns("build", "*.egg-info"))
     target = tmp_path / "site"
     base = [sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--target", str(target)]
     errors = []
     for extra in (["--no-build-isolation"], []):  # local build first, then an isolated one
         done = subprocess.run(
-            [*base, *extra, str(EXAMPLE)], capture_output=True, text=True, timeout=300
+            [*base, *extra, str(source)], capture_output=True, text=True, timeout=300
         )
         if done.returncode == 0:
             break
@@ -96,3 +102,17 @@ def test_example_plugin_pip_installs_and_runs(
     invalidate_caches()
     est = _run_plugin(tiny_seq)
     assert est[-1].valid and np.isfinite(est[-1].T_cam_obj).all()
+    # the same plugin through the harness and the CLI, on a dataset written to disk
+    # the analytic sequence's perfect detections are its "gt" pose set, a name files reserve
+    as_detector = dataclasses.replace(
+        tiny_seq, detector_pose_sets={"dope": tiny_seq.detector_poses("gt")}
+    )
+    dataset = write_sequence(as_detector, "fast-ycb", tmp_path / "data")
+    out = tmp_path / "run"
+    argv = ["run", str(dataset), "--tracker", NAME, "--faults", "paper", "--flow", "none",
+            "--masks", "none", "--out", str(out)]  # fmt: skip
+    assert main(argv) == 0
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics[tiny_seq.name]["frames"] == len(tiny_seq)
+    assert np.isfinite(metrics["ALL"]["rmse_t_cm"])
+    assert NAME in capsys.readouterr().out or (out / "run.json").is_file()
