@@ -14,6 +14,10 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
+from roft_sim.render.gl_backend import prepare_mujoco_gl
+
+prepare_mujoco_gl()  # before any submodule imports MuJoCo
+
 __all__ = [
     "SceneRenderer",
     "SceneState",

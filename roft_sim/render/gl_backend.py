@@ -22,6 +22,8 @@ __all__ = [
     "select_gl_backend",
     "probe_gl_backend",
     "require_gl_backend",
+    "prepare_mujoco_gl",
+    "context_error",
 ]
 
 BACKENDS = ("egl", "osmesa")
@@ -116,3 +118,34 @@ def require_gl_backend(environ: MutableMapping[str, str]) -> str:
     if backend is None or problem is not None:
         raise RenderBackendError(f"offscreen rendering is unavailable ({problem})")
     return backend
+
+
+def prepare_mujoco_gl() -> None:
+    """Chooses ``MUJOCO_GL`` for library users, before MuJoCo is imported.
+
+    Called where roft_sim imports MuJoCo (the ``roft_sim.render`` package and
+    ``roft_sim.scene.builder``), so that a script that never set ``MUJOCO_GL`` renders offscreen
+    instead of failing on MuJoCo's default (GLFW, which needs a display). Does nothing when the
+    variable is set or MuJoCo is already imported (its choice is then fixed). ``MUJOCO_GL`` is
+    MuJoCo's own variable: the one environment variable roft_sim reads outside its CLI.
+    """
+    import sys
+
+    if "mujoco" not in sys.modules and not os.environ.get("MUJOCO_GL"):
+        select_gl_backend(os.environ)
+
+
+def context_error(error: Exception) -> RenderBackendError:
+    """The error to raise when MuJoCo cannot create its OpenGL context."""
+    chosen = os.environ.get("MUJOCO_GL")
+    how = (
+        f"MUJOCO_GL={chosen} did not work"
+        if chosen
+        else "MuJoCo was imported before an offscreen backend was chosen"
+    )
+    return RenderBackendError(
+        f"cannot create an offscreen OpenGL context ({how}: {error}). Set MUJOCO_GL=egl or "
+        "MUJOCO_GL=osmesa before importing mujoco, or call "
+        "roft_sim.render.gl_backend.select_gl_backend(os.environ) first; if neither backend works, "
+        f"{INSTALL_HINT}"
+    )

@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roft_sim.errors import ConfigError
+from roft_sim.render.gl_backend import context_error
 
 __all__ = ["OffscreenRenderer", "RenderBuffers", "z_depth_from_depth_buffer"]
 
@@ -90,9 +91,12 @@ class OffscreenRenderer:
             )
         self._model = model
         self._width, self._height = int(width_px), int(height_px)
-        self._gl = mujoco.GLContext(self._width, self._height)
-        self._gl.make_current()
-        self._ctx = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_50.value)
+        try:
+            self._gl = mujoco.GLContext(self._width, self._height)
+            self._gl.make_current()
+            self._ctx = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_50.value)
+        except (mujoco.FatalError, RuntimeError, AttributeError) as e:
+            raise context_error(e) from e
         mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN.value, self._ctx)
         self._ctx.readDepthMap = mujoco.mjtDepthMap.mjDEPTH_ZEROFAR
         self._scene = mujoco.MjvScene(model, maxgeom=max_geom)

@@ -22,6 +22,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Protocol
 
+import roft_sim.render  # noqa: F401  (chooses MUJOCO_GL before MuJoCo is imported)
+
+# isort: split
 import mujoco
 import numpy as np
 from numpy.typing import NDArray
