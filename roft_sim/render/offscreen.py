@@ -16,7 +16,6 @@ Without segmentation and without multisampling, depth is read from the colour pa
 
 from __future__ import annotations
 
-import contextlib
 from dataclasses import dataclass
 
 import mujoco
@@ -226,6 +225,9 @@ class OffscreenRenderer:
         self.close()
 
     def __del__(self) -> None:
-        # At interpreter shutdown the GL library may already be gone.
-        with contextlib.suppress(Exception):
+        # At interpreter shutdown the GL library may already be gone, and so may module
+        # globals such as contextlib: only builtins are safe here.
+        try:  # noqa: SIM105
             self.close()
+        except Exception:
+            pass
