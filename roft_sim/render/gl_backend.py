@@ -3,7 +3,8 @@
 MuJoCo reads ``MUJOCO_GL`` once, when it is imported; PyOpenGL reads ``PYOPENGL_PLATFORM``. This
 module probes each backend in a short subprocess (a failed GL initialisation can leave a process
 unusable), sets both variables in the mapping it is given (``os.environ`` from the CLI or from
-pytest), and explains how to install a backend when none works.
+pytest), and explains how to install a backend when none works. Library code that imports
+roft_sim's rendering without having chosen gets the same choice (:func:`prepare_mujoco_gl`).
 """
 
 from __future__ import annotations
@@ -129,8 +130,6 @@ def prepare_mujoco_gl() -> None:
     variable is set or MuJoCo is already imported (its choice is then fixed). ``MUJOCO_GL`` is
     MuJoCo's own variable: the one environment variable roft_sim reads outside its CLI.
     """
-    import sys
-
     if "mujoco" not in sys.modules and not os.environ.get("MUJOCO_GL"):
         select_gl_backend(os.environ)
 
