@@ -117,7 +117,11 @@ class Sequence(Protocol):
         ...
 
     def ground_truth(self) -> PoseTrack | None:
-        """Ground-truth object poses and velocities for every frame; None for real data."""
+        """Ground-truth object poses and velocities for every frame; None for real data.
+
+        Frames a dataset leaves unannotated (possible in a BOP scene made elsewhere) have NaN
+        rows; velocities are NaN where the dataset stores none.
+        """
         ...
 
     def camera_poses(self) -> F64:

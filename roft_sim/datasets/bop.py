@@ -143,12 +143,17 @@ def _bop_json(entries: Mapping[int, Any]) -> str:
 
 
 def _bbox(mask: Bool) -> list[int]:
-    """BOP bounding box ``[x, y, width, height]`` [px] of a mask; ``[-1, -1, -1, -1]`` if empty."""
+    """BOP bounding box ``[x, y, width, height]`` [px] of a mask; ``[-1, -1, -1, -1]`` if empty.
+
+    As bop_toolkit's ``misc.calc_2d_bbox`` computes it, so our ``scene_gt_info.json`` equals the
+    toolkit's: width = x_max - x_min and height = y_max - y_min over the mask's pixel indices (a
+    one-pixel mask has width and height 0).
+    """
     rows = np.flatnonzero(mask.any(axis=1))
     cols = np.flatnonzero(mask.any(axis=0))
     if rows.size == 0:
         return [-1, -1, -1, -1]
-    return [int(cols[0]), int(rows[0]), int(cols[-1] - cols[0] + 1), int(rows[-1] - rows[0] + 1)]
+    return [int(cols[0]), int(rows[0]), int(cols[-1] - cols[0]), int(rows[-1] - rows[0])]
 
 
 def _diameter_m(points_m: F64) -> float:
@@ -219,7 +224,7 @@ class BopWriter(StreamingWriter):
             "mask_full": "mask/ is the full silhouette when the generator gave one, else a copy "
             "of mask_visib/ (see ground_truth.full_masks)",
             "bbox": "bbox_obj and bbox_visib are [x, y, width, height] of the full and visible "
-            "masks inside the image",
+            "masks inside the image, width = x_max - x_min as bop_toolkit's calc_2d_bbox",
         }
 
     def _write_frame_files(self, frame: DatasetFrame) -> dict[str, Any]:
@@ -386,6 +391,8 @@ class BopSequence(SequenceReaderBase):
         self._metadata: dict[str, Any] = (
             read_json(meta_path, "metadata") if meta_path.is_file() else {}
         )
+        if not isinstance(self._metadata, dict):
+            raise DatasetFormatError(f"{located(meta_path)} must hold a JSON object")
         self._name = str(self._metadata.get("sequence_name", self.path.name))
         cam_path = self.path / "scene_camera.json"
         cameras = self._json_by_id(cam_path, "scene camera")
@@ -394,7 +401,16 @@ class BopSequence(SequenceReaderBase):
         self._im_ids = sorted(cameras)
         self._cameras = [cameras[i] for i in self._im_ids]
         self._intrinsics = self._find_intrinsics(cam_path)
-        self._fps = int(fps or self._metadata.get("fps") or 30)
+        meta_fps = self._metadata.get("fps")
+        if (
+            fps is None
+            and meta_fps is not None
+            and not (isinstance(meta_fps, int) and not isinstance(meta_fps, bool) and meta_fps > 0)
+        ):
+            raise DatasetFormatError(
+                f"{located(meta_path)}: fps = {meta_fps!r}; expected a positive integer [Hz]"
+            )
+        self._fps = int(fps or meta_fps or 30)
         gt_path = self.path / "scene_gt.json"
         self._gt = self._json_by_id(gt_path, "scene ground truth") if gt_path.is_file() else {}
         self._obj_id, self._object_name = self._find_object(object_name)
@@ -450,7 +466,13 @@ class BopSequence(SequenceReaderBase):
                 )
         size = self._metadata.get("intrinsics")
         if isinstance(size, dict) and "width_px" in size:
-            w, h = int(size["width_px"]), int(size["height_px"])
+            try:
+                w, h = int(size["width_px"]), int(size["height_px"])
+            except (KeyError, TypeError, ValueError) as e:
+                raise DatasetFormatError(
+                    f"{located(self.path / 'metadata.json')}: intrinsics need integer width_px "
+                    f"and height_px ({type(e).__name__}: {e})"
+                ) from None
         else:
             h, w = self._rgb_at(0, shape=None).shape[:2]
         try:
@@ -470,14 +492,27 @@ class BopSequence(SequenceReaderBase):
         return invert_transform(transform_from_rt(R, t / 1000.0))
 
     def _find_object(self, object_name: str | None) -> tuple[int, str]:
-        ids_in_scene = sorted(
-            {int(o["obj_id"]) for v in self._gt.values() for o in v if isinstance(o, dict)}
-        )
+        gt_path = self.path / "scene_gt.json"
+        try:
+            ids_in_scene = sorted(
+                {int(o["obj_id"]) for v in self._gt.values() for o in v if isinstance(o, dict)}
+            )
+        except (KeyError, TypeError, ValueError) as e:
+            raise DatasetFormatError(
+                f"{located(gt_path)}: every image needs a list of objects with an integer "
+                f"obj_id ({type(e).__name__}: {e})"
+            ) from None
         if object_name is None:
             if "object_name" in self._metadata:
                 opts = self._metadata.get("format_options", {})
                 name = str(self._metadata["object_name"])
-                return int(opts.get("obj_id", bop_obj_id(name))), name
+                obj_id = opts.get("obj_id", bop_obj_id(name)) if isinstance(opts, dict) else None
+                if isinstance(obj_id, bool) or not isinstance(obj_id, int):
+                    raise DatasetFormatError(
+                        f"{located(self.path / 'metadata.json')}: format_options.obj_id = "
+                        f"{obj_id!r}; expected an integer BOP obj_id"
+                    )
+                return obj_id, name
             if len(ids_in_scene) != 1:
                 raise DatasetFormatError(
                     f"{located(self.path)} shows objects {ids_in_scene}; pass object_name to "
@@ -574,7 +609,8 @@ class BopSequence(SequenceReaderBase):
         if (self.path / "mask_visib").is_dir():
             sets.append(GT_MASK_SET)
         gt_info = self._metadata.get("ground_truth", {})
-        if (self.path / "mask").is_dir() and gt_info.get("full_masks", True):
+        full_masks = gt_info.get("full_masks", True) if isinstance(gt_info, dict) else True
+        if (self.path / "mask").is_dir() and full_masks:
             sets.append(GT_FULL_MASK_SET)
         d = self.path / "extras" / "masks"
         if d.is_dir():
@@ -627,6 +663,8 @@ class BopSequence(SequenceReaderBase):
                 k = index[int(row["im_id"])]
                 R = np.array([float(x) for x in row["R"].split()]).reshape(3, 3)
                 t = np.array([float(x) for x in row["t"].split()]) / 1000.0
+                if t.shape != (3,) or not np.isfinite(t).all():
+                    raise ValueError(f"t must be 3 finite numbers [mm], got {row['t']!r}")
                 T[k] = transform_from_rt(as_rotation_matrix(R), t)
             except (KeyError, ValueError, TypeError, AttributeError) as e:
                 raise DatasetFormatError(f"{located(path, line)}: bad pose row: {e}") from None
@@ -656,10 +694,17 @@ class BopSequence(SequenceReaderBase):
         if vel_path.is_file():
             vel = self._json_by_id(vel_path, "velocities")
             for k, im in enumerate(self._im_ids):
-                for o in vel.get(im, []):
-                    if int(o.get("obj_id", -1)) == self._obj_id:
-                        v[k] = self._numbers(o.get("v_obj_mps"), 3, vel_path, f"v_obj_mps of {im}")
-                        w[k] = self._numbers(o.get("w_radps"), 3, vel_path, f"w_radps of {im}")
+                entries = vel.get(im, [])
+                try:
+                    ours = [o for o in entries if int(o.get("obj_id", -1)) == self._obj_id]
+                except (AttributeError, TypeError, ValueError):
+                    raise DatasetFormatError(
+                        f"{located(vel_path)}: image {im} needs a list of objects with an "
+                        f"integer obj_id, got {entries!r:.80}"
+                    ) from None
+                for o in ours:
+                    v[k] = self._numbers(o.get("v_obj_mps"), 3, vel_path, f"v_obj_mps of {im}")
+                    w[k] = self._numbers(o.get("w_radps"), 3, vel_path, f"w_radps of {im}")
         return PoseTrack(t_s=self._t_s.copy(), T_cam_obj=T, v_obj_mps=v, w_radps=w)
 
     def camera_poses(self) -> F64:

@@ -333,6 +333,8 @@ def decode_cam_k_json(text: str, path: Path) -> CameraIntrinsics:
                 f"cy (found {sorted(data)})"
             )
         try:
+            if isinstance(data[key], bool):  # float(True) == 1.0: not a number here
+                raise TypeError
             values[key] = float(data[key])
         except (TypeError, ValueError):
             raise DatasetFormatError(

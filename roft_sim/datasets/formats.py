@@ -206,8 +206,20 @@ def dataset_frames(sequence: Sequence) -> Iterator[DatasetFrame]:
     """The frames of any ``Sequence`` as :class:`DatasetFrame` objects, one at a time.
 
     Detector pose misses become None; GT velocities that are NaN (unknown) are left out.
+    Ground truth must cover every frame or none (what every writer stores): a sequence whose
+    ground truth has NaN poses on some frames (a BOP scene that leaves images unannotated)
+    raises :class:`DatasetFormatError` naming the first such frame.
     """
     gt = sequence.ground_truth()
+    if gt is not None:
+        missing = np.flatnonzero(~np.isfinite(gt.T_cam_obj).all(axis=(1, 2)))
+        if missing.size:
+            raise DatasetFormatError(
+                f"{sequence.name}: no ground-truth pose of {sequence.object_name} on "
+                f"{missing.size} of {len(sequence)} frames (first: frame {int(missing[0])}); "
+                "roft-sim datasets need ground truth on every frame or on none. Annotate those "
+                "frames, or cut the sequence to the annotated frames before converting it"
+            )
     cams = sequence.camera_poses()
     poses = {name: sequence.detector_poses(name) for name in sequence.pose_sets()}
     has_vel = gt is not None and bool(np.isfinite(gt.v_obj_mps).all())

@@ -42,6 +42,7 @@ from roft_sim.datasets.reader_base import SequenceReaderBase
 from roft_sim.datasets.writer_base import StreamingWriter, WriterSettings
 from roft_sim.errors import ConfigError, DatasetFormatError, located
 from roft_sim.geometry.camera import CameraIntrinsics
+from roft_sim.geometry.se3 import as_transform
 from roft_sim.records import FlowField, ObjectModel, PoseTrack
 
 F64 = NDArray[np.float64]
@@ -406,7 +407,7 @@ class Hdf5Sequence(SequenceReaderBase):
                 int(f.attrs["height_px"]),
             )
             self._t_s = self._small("time_s", (self._n,))
-            self._T_world_cam = self._small("T_world_cam", (self._n, 4, 4))
+            self._T_world_cam = self._transforms("T_world_cam")
             for key in ("rgb", "depth_m"):
                 want = (self._n, *self._intrinsics.shape) + ((3,) if key == "rgb" else ())
                 if f[key].shape != want:
@@ -456,6 +457,21 @@ class Hdf5Sequence(SequenceReaderBase):
         if data.dtype.kind == "f" and not np.isfinite(data).all():
             raise DatasetFormatError(f"{located(self.path)}: /{key} holds NaN/inf values")
         return data
+
+    def _transforms(self, key: str) -> np.ndarray:
+        """``(N, 4, 4)`` rigid transforms [m] from dataset ``key``, checked as other readers do."""
+        T = self._small(key, (self._n, 4, 4))
+        try:
+            as_transform(T)
+        except ValueError:
+            for k in range(self._n):  # name the first bad frame
+                try:
+                    as_transform(T[k])
+                except ValueError as e:
+                    raise DatasetFormatError(
+                        f"{located(self.path)}: /{key} frame {k} is not a rigid transform: {e}"
+                    ) from None
+        return T
 
     def _groups(self, key: str) -> tuple[str, ...]:
         with self._guard(f"/{key}"):
@@ -530,7 +546,7 @@ class Hdf5Sequence(SequenceReaderBase):
         if pose_set not in self.pose_sets():
             raise KeyError(f"no pose set {pose_set!r} in {self.path}; sets: {self.pose_sets()}")
         with self._guard(f"/poses/{pose_set}"):
-            T = self._small(f"poses/{pose_set}/T_cam_obj", (self._n, 4, 4))
+            T = self._transforms(f"poses/{pose_set}/T_cam_obj")
             valid = self._small(f"poses/{pose_set}/valid", (self._n,)) != 0
         return DetectorPoses(T_cam_obj=T, valid=valid)
 
@@ -538,7 +554,7 @@ class Hdf5Sequence(SequenceReaderBase):
         with self._guard("/gt"):
             if "gt" not in self._h5():
                 return None
-            T = self._small("gt/T_cam_obj", (self._n, 4, 4))
+            T = self._transforms("gt/T_cam_obj")
             if "v_obj_mps" in self._h5()["gt"]:
                 v = self._small("gt/v_obj_mps", (self._n, 3))
                 w = self._small("gt/w_radps", (self._n, 3))

@@ -225,6 +225,106 @@ def test_bop_bad_pose_csv_and_unknown_object(bop: Path):
         open_sequence(bop, object_name="obj_000007")
 
 
+def _edit_json(path: Path, edit) -> None:
+    data = json.loads(path.read_text())
+    edit(data)
+    path.write_text(json.dumps(data))
+
+
+@pytest.mark.parametrize(
+    ("file", "edit", "access", "message"),
+    [
+        (
+            "scene_gt.json",
+            lambda d: d["2"][0].__setitem__("obj_id", "x"),
+            lambda s: s,
+            r"scene_gt.json': every image needs a list of objects with an integer obj_id",
+        ),
+        (
+            "scene_gt.json",
+            lambda d: d["2"][0].pop("obj_id"),
+            lambda s: s,
+            r"scene_gt.json': every image needs a list of objects with an integer obj_id",
+        ),
+        (
+            "scene_gt.json",
+            lambda d: d.__setitem__("2", 5),
+            lambda s: s,
+            r"scene_gt.json': every image needs a list of objects with an integer obj_id",
+        ),
+        (
+            "extras/scene_gt_velocity.json",
+            lambda d: d.__setitem__("2", 5),
+            lambda s: s.ground_truth(),
+            r"scene_gt_velocity.json': image 2 needs a list of objects with an integer obj_id",
+        ),
+        (
+            "extras/scene_gt_velocity.json",
+            lambda d: d["2"][0].__setitem__("obj_id", "x"),
+            lambda s: s.ground_truth(),
+            r"scene_gt_velocity.json': image 2 needs a list of objects with an integer obj_id",
+        ),
+        (
+            "metadata.json",
+            lambda d: d.__setitem__("fps", "abc"),
+            lambda s: s,
+            r"metadata.json': fps = 'abc'; expected a positive integer",
+        ),
+        (
+            "metadata.json",
+            lambda d: d["intrinsics"].pop("height_px"),
+            lambda s: s,
+            r"metadata.json': intrinsics need integer width_px and height_px",
+        ),
+        (
+            "metadata.json",
+            lambda d: d.__setitem__("format_options", "x"),
+            lambda s: s,
+            r"metadata.json': format_options.obj_id = None; expected an integer",
+        ),
+        (
+            "metadata.json",
+            lambda d: d.__setitem__("ground_truth", []),
+            lambda s: s.mask_sets(),
+            None,
+        ),
+    ],
+    ids=[
+        "gt-obj_id-str",
+        "gt-obj_id-missing",
+        "gt-entry-int",
+        "velocity-entry-int",
+        "velocity-obj_id-str",
+        "meta-fps-str",
+        "meta-intrinsics-no-height",
+        "meta-format_options-str",
+        "meta-ground_truth-list",
+    ],
+)
+def test_bop_malformed_json_entries_are_format_errors(bop: Path, file, edit, access, message):
+    """Malformed entries raised ValueError/TypeError/KeyError/AttributeError tracebacks."""
+    _edit_json(bop / file, edit)
+    if message is None:  # tolerated: a malformed optional hint falls back to the default
+        assert "gt_full" in access(open_sequence(bop))
+        return
+    with pytest.raises(DatasetFormatError, match=message):
+        access(open_sequence(bop))
+
+
+def test_bop_metadata_that_is_not_an_object(bop: Path):
+    (bop / "metadata.json").write_text("[]")
+    with pytest.raises(DatasetFormatError, match=r"metadata.json' must hold a JSON object"):
+        open_sequence(bop)
+
+
+def test_bop_pose_csv_with_a_nan_or_short_translation(bop: Path):
+    path = bop / "extras" / "poses" / "dope.csv"
+    for t_text in ("nan 2 3", "1 2"):
+        _edit_line(path, 3, f"0,1,2,1,1 0 0 0 1 0 0 0 1,{t_text},-1")
+        with pytest.raises(DatasetFormatError, match=rf"'{path}', line 3: bad pose row: t must"):
+            open_sequence(bop).detector_poses("dope")
+
+
 # ----------------------------------------------------------------------------------- HDF5
 def test_truncated_hdf5(hdf5: Path):
     hdf5.write_bytes(hdf5.read_bytes()[:3000])
@@ -278,3 +378,27 @@ def test_list_sequences_finds_all_formats_and_bop_splits(written: dict[str, Path
     found = list_sequences(root)
     assert found == sorted(written.values())
     assert [detect_format(p) for p in found] == ["bop", "fast-ycb", "hdf5"]
+
+
+def test_bop_scene_with_an_unannotated_image_cannot_be_converted(bop: Path, tmp_path: Path):
+    _edit_json(bop / "scene_gt.json", lambda d: d.__setitem__("2", []))
+    seq = open_sequence(bop)
+    assert np.isnan(seq.ground_truth().T_cam_obj[2]).all()  # documented: NaN rows
+    with pytest.raises(
+        DatasetFormatError, match=r"no ground-truth pose .* 1 of 4 frames .*frame 2"
+    ):
+        write_sequence(seq, "hdf5", tmp_path / "out")
+
+
+def test_hdf5_pose_that_is_not_rigid(hdf5: Path):
+    with h5py.File(hdf5, "a") as f:
+        f["gt/T_cam_obj"][3, 0, 0] = 5.0
+    with pytest.raises(DatasetFormatError, match=r"/gt/T_cam_obj frame 3 is not a rigid transform"):
+        open_sequence(hdf5).ground_truth()
+
+
+def test_cam_k_json_with_a_boolean_size(fast_ycb: Path):
+    path = fast_ycb / "cam_K.json"
+    _edit_json(path, lambda d: d.__setitem__("width", True))
+    with pytest.raises(DatasetFormatError, match=r"width = True is not a number"):
+        open_sequence(fast_ycb)

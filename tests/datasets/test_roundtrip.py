@@ -125,8 +125,9 @@ def test_bop_scene_gt_info_matches_the_masks(tmp_path: Path):
     info = json.loads((scene / "scene_gt_info.json").read_text())["1"][0]
     full, visib, depth = frames[1].gt_mask_full, frames[1].gt_mask, frames[1].depth_m
     rows, cols = np.nonzero(visib)
+    # bop_toolkit's misc.calc_2d_bbox: width = x_max - x_min (no + 1)
     assert info["bbox_visib"] == [
-        int(cols.min()), int(rows.min()), int(np.ptp(cols) + 1), int(np.ptp(rows) + 1)
+        int(cols.min()), int(rows.min()), int(np.ptp(cols)), int(np.ptp(rows))
     ]  # fmt: skip
     assert info["px_count_all"] == full.sum() and info["px_count_visib"] == visib.sum()
     assert info["px_count_valid"] == (full & (depth > 0)).sum()
