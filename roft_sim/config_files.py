@@ -145,6 +145,8 @@ def _convert(tp: Any, value: Any, where: str) -> Any:  # noqa: C901 - one branch
         dc_options = [a for a in options if dataclasses.is_dataclass(a)]
         if dc_options and isinstance(value, Mapping):
             return _convert_tagged_union(dc_options, value, where)
+        if len(options) == 1:  # Optional[X]: keep X's own message (it says what is expected)
+            return _convert(options[0], value, where)
         for option in options:
             try:
                 return _convert(option, value, where)

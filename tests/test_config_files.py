@@ -101,3 +101,15 @@ def test_jsonable_roundtrip_of_config():
     data = jsonable(cfg)
     assert data["path"] == "p" and data["size"] == [1, 2]
     assert dataclass_from_mapping(Outer, data) == cfg
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class WithOptionalTuple:
+    window_s: tuple[float, float] | None = None
+
+
+def test_an_optional_value_of_the_wrong_shape_says_what_was_expected():
+    """An optional key keeps the specific message of its type (review regression): not just
+    "matches none of tuple | NoneType"."""
+    with pytest.raises(ConfigError, match=r"config\.window_s: expected 2 values, got 1"):
+        dataclass_from_mapping(WithOptionalTuple, {"window_s": [1.0]})

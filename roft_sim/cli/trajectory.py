@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import math
 import sys
 from pathlib import Path
 
@@ -174,6 +175,8 @@ def format_speed_table(stats: SpeedStatistics, title: str) -> str:
 def _build(
     args: argparse.Namespace, default_min_in_view_fraction: float
 ) -> tuple[TrajectoryConfig, Trajectory]:
+    if args.fps is not None and not (math.isfinite(args.fps) and args.fps > 0):
+        raise ConfigError(f"--fps must be a positive number of samples per second, got {args.fps}")
     config = trajectory_config_from_args(
         args, default_min_in_view_fraction=default_min_in_view_fraction
     )

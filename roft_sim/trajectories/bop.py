@@ -67,6 +67,10 @@ def read_bop_scene_gt(
         raise DatasetFormatError(
             f"BOP file {located(path)} does not exist; give scene_gt.json or its scene folder"
         ) from None
+    except UnicodeDecodeError as e:
+        raise DatasetFormatError(
+            f"{located(path)} is not a UTF-8 text file ({e}); {_HELP}"
+        ) from None
     except json.JSONDecodeError as e:
         raise DatasetFormatError(
             f"{located(path, e.lineno)}: not valid JSON ({e.msg}, column {e.colno}); {_HELP}"

@@ -308,6 +308,10 @@ def read_bvh(path: str | Path, *, unit: BvhUnit = "auto") -> BvhMotion:
         raise DatasetFormatError(
             f"BVH file {located(path)} does not exist; check the path"
         ) from None
+    except IsADirectoryError:
+        raise DatasetFormatError(
+            f"{located(path)} is a folder; give the .bvh file itself"
+        ) from None
     except UnicodeDecodeError as e:
         raise DatasetFormatError(f"{located(path)} is not a UTF-8 text file ({e})") from None
     motion_line = next((i for i, s in enumerate(lines) if s.strip() == "MOTION"), None)

@@ -55,6 +55,10 @@ def read_fast_ycb_poses(path: str | Path, *, rate_hz: float = FAST_YCB_RATE_HZ) 
             f"Fast-YCB pose file {located(path)} does not exist; give gt/poses.txt or the "
             "sequence folder"
         ) from None
+    except UnicodeDecodeError as e:
+        raise DatasetFormatError(
+            f"{located(path)} is not a UTF-8 text file ({e}); {_HELP}"
+        ) from None
     rows: list[list[float]] = []
     for number, raw in enumerate(text.splitlines(), start=1):
         line = raw.strip()

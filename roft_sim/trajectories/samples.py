@@ -164,8 +164,9 @@ def lowpass_poses(samples: PoseSamples, cutoff_hz: float) -> PoseSamples:
     cut-off). The result does not depend on the quaternion signs in the input.
 
     Raises:
-        ConfigError: the cut-off is not below the Nyquist frequency.
-        ValueError: the samples are not uniform, or too few for the filter's edge padding.
+        ConfigError: the cut-off is not below the Nyquist frequency, or the samples are too few
+            for the filter's edge padding.
+        ValueError: the samples are not uniform.
     """
     rate = _require_uniform(samples, "low-pass filtering")
     if not (0.0 < cutoff_hz < 0.5 * rate):
@@ -176,7 +177,10 @@ def lowpass_poses(samples: PoseSamples, cutoff_hz: float) -> PoseSamples:
     sos = signal.butter(LOWPASS_ORDER, cutoff_hz, btype="low", fs=rate, output="sos")
     padlen = 3 * (2 * len(sos) + 1)
     if len(samples) <= padlen:
-        raise ValueError(f"low-pass filtering needs more than {padlen} samples, got {len(samples)}")
+        raise ConfigError(
+            f"lowpass_hz needs more than {padlen} samples to filter, but {samples.source} has "
+            f"{len(samples)}; remove lowpass_hz or use a longer recording"
+        )
     p = signal.sosfiltfilt(sos, samples.T_ref_obj[:, :3, 3], axis=0)
     q = _continuous_quats(quat_from_matrix(samples.T_ref_obj[:, :3, :3]))
     q_out = signal.sosfiltfilt(sos, q, axis=0)

@@ -106,6 +106,10 @@ def _read_rows(path: Path) -> tuple[np.ndarray, list[int]]:
         raise DatasetFormatError(
             f"CSV file {located(path)} does not exist; check the path"
         ) from None
+    except IsADirectoryError:
+        raise DatasetFormatError(
+            f"{located(path)} is a folder; give the trajectory CSV file itself"
+        ) from None
     except UnicodeDecodeError as e:
         raise DatasetFormatError(f"{located(path)} is not a UTF-8 text file ({e})") from None
     numbered = [

@@ -50,6 +50,10 @@ def read_tum(path: str | Path) -> PoseSamples:
         raise DatasetFormatError(
             f"TUM file {located(path)} does not exist; check the path"
         ) from None
+    except IsADirectoryError:
+        raise DatasetFormatError(
+            f"{located(path)} is a folder; give the TUM trajectory file itself"
+        ) from None
     except UnicodeDecodeError as e:
         raise DatasetFormatError(
             f"{located(path)} is not a UTF-8 text file ({e}); {_HELP}"
