@@ -361,14 +361,18 @@ def evaluate_estimates(
         for i, e in enumerate(estimates):
             if e.spatial_twist is not None:
                 twist[i] = e.spatial_twist
+
+    def rows(name: str, width: int) -> F64:
+        return np.stack([getattr(e, name) for e in estimates]) if n else np.zeros((0, width))
+
     return evaluate_sequence(
         np.stack([e.T_cam_obj for e in estimates]) if n else np.zeros((0, 4, 4)),
         ground_truth.T_cam_obj,
         model_points_m,
         v_obj_gt=ground_truth.v_obj_mps,
         w_gt=ground_truth.w_radps,
-        v_obj_est=None if use_twist else np.stack([e.v_obj_mps for e in estimates]),
-        w_est=None if use_twist else np.stack([e.w_radps for e in estimates]),
+        v_obj_est=None if use_twist else rows("v_obj_mps", 3),
+        w_est=None if use_twist else rows("w_radps", 3),
         spatial_twist_est=twist,
         valid=np.array([e.valid for e in estimates], dtype=bool),
         invalid=invalid,

@@ -198,3 +198,15 @@ def test_evaluate_estimates_matches_arrays_and_checks_alignment():
     no_twist = [Estimate.invalid(k) for k in range(5)]
     with pytest.raises(ValueError, match="carry no spatial_twist"):
         evaluate_estimates(no_twist, gt, PTS, velocity="spatial_twist")
+
+
+def test_evaluate_estimates_of_an_empty_sequence_gives_nan_metrics():
+    # evaluate_sequence scores N = 0 as NaN metrics; evaluate_estimates must not crash on it
+    gt = PoseTrack(
+        t_s=np.zeros(0),
+        T_cam_obj=np.zeros((0, 4, 4)),
+        v_obj_mps=np.zeros((0, 3)),
+        w_radps=np.zeros((0, 3)),
+    )
+    m = evaluate_estimates([], gt, PTS)
+    assert m.frames == 0 and np.isnan(m.add_auc_pct) and np.isnan(m.rmse_v_cmps)

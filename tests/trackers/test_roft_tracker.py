@@ -469,6 +469,18 @@ def test_observations_must_come_in_order(tiny_seq):
         tracker.step(obs[2])
 
 
+def test_observations_must_come_without_gaps(tiny_seq):
+    """A skipped k (instead of a dropped-frame Observation) is a clear error, not a KeyError
+    from the replay buffers."""
+    obs = build_observations(tiny_seq, poses=[Delivery(0, 0, 0), Delivery(3, 6, 1)])
+    tracker = RoftTracker(TINY, make_context(tiny_seq))
+    tracker.reset(None)
+    tracker.step(obs[0])
+    tracker.step(obs[1])
+    with pytest.raises(ValueError, match="without gaps in k; got k=3 after 1"):
+        tracker.step(obs[3])
+
+
 # ----------------------------------------------------------------- configuration
 
 

@@ -1,8 +1,8 @@
 """Constant-velocity pose UKFs on detector poses alone (no flow, no masks).
 
 Both reuse ROFT's quaternion UKF (:mod:`roft_sim.trackers.roft.pose_ukf`) with pose-only
-measurements, the noise of ROFT's "w/o velocity" ablation (Q_ww = 0.01 per step, rotation
-measurement variance 0.01 rad^2) except a smaller S_a = 0.1, and ROFT's pose gate switched on:
+measurements, the noise of ROFT's "w/o velocity" ablation (S_a = 1 as in the reference, Q_ww = 0.01
+per step, rotation measurement variance 0.01 rad^2), and ROFT's pose gate switched on:
 
 - ``pose-only-ukf`` handles delays correctly: a pose captured at frame c restarts the filter from
   its belief at c-1 and replays the predictions up to now (ROFT's pose synchronisation).
@@ -54,8 +54,8 @@ class PoseOnlyUkfConfig:
     """Settings of the pose-only UKF baselines (ROFT's UKF without velocity measurements)."""
 
     pose: PoseUKFConfig = field(default_factory=_pose_only_defaults)
-    """The UKF (defaults: ROFT's, with sigma_linear = 0.1, sigma_angular = 0.01 and
-    meas_cov_q = 0.01)."""
+    """The UKF (defaults: ROFT's, with sigma_angular = 0.01 and meas_cov_q = 0.01, as in its
+    "w/o velocity" ablation; sigma_linear stays 1.0)."""
     gate: PoseGateConfig = field(default_factory=_pose_only_gate)
     """Rejects poses more than 15 cm or 120 degrees from the prediction (see the module
     docstring for why it is on and why these bounds)."""

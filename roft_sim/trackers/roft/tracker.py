@@ -361,6 +361,11 @@ class RoftTracker:
             raise ValueError(
                 f"observations must come in increasing k; got k={k} after {self._last_k}"
             )
+        if self._last_k is not None and k != self._last_k + 1:
+            raise ValueError(
+                f"observations must come without gaps in k; got k={k} after {self._last_k}. A "
+                "dropped camera frame must still be stepped, as an Observation with depth_m None"
+            )
         if self._first_k is None:
             self._first_k = k
         fps = self._context.fps
