@@ -225,6 +225,11 @@ def _convert_tagged_union(options: list[type], value: Mapping[str, Any], where: 
             return _build_dataclass(options[0], value, where)
         raise TypeError(f"union of dataclasses without a 'kind' Literal field at {where}")
     kind = value.get("kind")
+    if "kind" not in value:
+        raise ConfigError(
+            f"{where}: missing key 'kind'; add kind = one of "
+            f"{', '.join(repr(k) for k in sorted(by_kind))}"
+        )
     if kind not in by_kind:
         close = difflib.get_close_matches(str(kind), list(by_kind), n=1)
         hint = f" (did you mean {close[0]!r}?)" if close else ""

@@ -71,6 +71,10 @@ def test_builds_nested_and_coerces_int_to_float():
         ({"name": "x", "size": [1]}, "expected 2 values"),
         ({"name": "x", "faults": [{"kind": "delya"}]}, r"did you mean 'delay'"),
         (
+            {"name": "x", "faults": [{"frames": 2}]},
+            r"config\.faults\[0\]: missing key 'kind'; add kind = one of 'delay', 'drop'",
+        ),
+        (
             {"name": "x", "faults": [{"kind": "delay", "frames": "2"}]},
             r"config\.faults\[0\]\.frames: expected an integer",
         ),

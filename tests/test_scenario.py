@@ -138,7 +138,7 @@ subpixel_px = 0.1
         (("frames = 10", "frames = 10\nseed = -1"), r"seed must be >= 0"),
         (
             ("[trajectory]", "[camera.motion]\nfrequency_hz = 1.0\n[trajectory]"),
-            r"camera.motion: kind = None is not known.*'sway'",
+            r"camera.motion: missing key 'kind'; add kind = one of .*'sway'",
         ),
     ],
 )

@@ -242,7 +242,11 @@ class SceneRenderer:
 
     def _blurred_rgb(self, t_s: float) -> NDArray[np.uint8]:
         """Mean of ``n`` renders at sub-frame times spread evenly over the exposure, centred on
-        ``t_s``: ``t_s + exposure * ((i + 0.5) / n - 0.5)``."""
+        ``t_s``: ``t_s + exposure * ((i + 0.5) / n - 0.5)``.
+
+        Sub-frame times before 0 are clamped to 0 (the trajectory starts there), so the blur of
+        the first frame is one-sided: its mean time is about an eighth of the exposure late.
+        """
         opts = self.scenario.render
         n = opts.motion_blur_subframes
         exposure_s = opts.exposure_fraction / self.scenario.fps

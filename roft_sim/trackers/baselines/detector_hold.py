@@ -35,7 +35,7 @@ class DetectorHoldConfig:
     """Settings of the hold-last-detection baselines."""
 
     velocity: Literal["finite_difference", "zero"] = "finite_difference"
-    """Reported velocity: finite difference of the two newest poses (by capture time), or zero."""
+    """Reported velocity: finite difference of the two newest held poses (by capture), or zero."""
 
 
 @dataclass(frozen=True, slots=True)
