@@ -143,7 +143,7 @@ def _generate(args: argparse.Namespace, out: Path, progress: bool) -> tuple[Path
 
 def _run(args: argparse.Namespace) -> int:
     from roft_sim.harness.executors import make_executor
-    from roft_sim.harness.paper import paper_rows, run_paper
+    from roft_sim.harness.paper import paper_rows, plan_paper, run_paper
     from roft_sim.harness.run_dataset import find_sequences
 
     if args.reuse is not None and (args.frames is not None or args.resolution is not None):
@@ -153,11 +153,25 @@ def _run(args: argparse.Namespace) -> int:
         plugins=not args.no_plugins,
     )
     executor = make_executor(args.workers)
+    # Everything that can be checked is checked before --out is touched (--overwrite empties it).
+    if args.seed < 0:
+        raise ConfigError(f"seed must be an integer >= 0, got {args.seed}")
+    if args.flow not in ("auto", "none"):
+        from roft_sim.sensors.flow_sources import make_flow_source
+
+        make_flow_source(args.flow, seed=0)
     if args.reuse is not None:
         try:
-            find_sequences([args.reuse])
+            plan_paper(rows, find_sequences([args.reuse]), flow=args.flow, seed=args.seed)
         except DatasetFormatError as e:
             raise ConfigError(str(e)) from None
+    else:
+        from roft_sim.generation import ScenarioOverrides, parse_resolution
+
+        ScenarioOverrides(
+            frames=args.frames,
+            resolution=None if args.resolution is None else parse_resolution(args.resolution),
+        )
     out = prepare_output_dir(args.out, overwrite=args.overwrite, resume=args.resume)
     progress = not (args.no_progress or args.quiet or args.json)
     t0 = time.perf_counter()

@@ -157,15 +157,13 @@ def build_run_options(args: argparse.Namespace, tracker: str, config: Any) -> An
 
 
 def _check_inputs(sources: list[Any], options: Any) -> None:
-    """Validates every sequence's inputs before anything is written."""
-    from roft_sim.harness import resolve_inputs
-    from roft_sim.sensors.flow_sources import make_flow_source
+    """Validates the sequence names and every sequence's inputs before anything is written."""
+    from roft_sim.harness.inputs import check_inputs
+    from roft_sim.harness.run_dataset import check_sequence_names
 
+    check_sequence_names(sources)
     for source in sources:
-        inputs = resolve_inputs(source.sequence, options)
-        if inputs.flow is not None:
-            make_flow_source(inputs.flow, seed=0)
-        options.faults.check_camera_rate(int(source.sequence.fps))
+        check_inputs(source.sequence, options)
 
 
 def command_record(args: argparse.Namespace) -> list[str]:

@@ -23,6 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roft_sim.datasets.base import GT_MASK_SET, Sequence
+from roft_sim.datasets.frames import GT_FULL_MASK_SET
 from roft_sim.errors import ConfigError, RoftSimError
 from roft_sim.faults.config import FaultConfig
 from roft_sim.faults.content import CorruptionContext
@@ -116,9 +117,9 @@ class ObservationStream:
         seed: the run's seed (int >= 0 or a ``SeedSequence``); ignored if ``faults.seed`` is set.
         flow_source: where flow comes from; None = no flow in the observations.
         pose_set: the sequence's detector pose set; None = no pose detections.
-        mask_set: the sequence's mask set; ``"auto"`` = its first detector (non-``gt``) set
-            (an error if it has none); ``"gt"`` = ground-truth masks (an ablation); None = no
-            mask detections.
+        mask_set: the sequence's mask set; ``"auto"`` = its first detector set (neither ``gt``
+            nor ``gt_full``; an error if it has none); ``"gt"`` = ground-truth masks (an
+            ablation); None = no mask detections.
         include_rgb: False leaves ``rgb`` None on every observation (saves reading images for
             trackers that do not use them).
         ideal_detections: the "detector ideal" baseline: every frame's detection arrives at its
@@ -171,7 +172,7 @@ class ObservationStream:
             return None
         available = tuple(self.sequence.mask_sets())
         if mask_set == "auto":
-            detectors = [s for s in available if s != GT_MASK_SET]
+            detectors = [s for s in available if s not in (GT_MASK_SET, GT_FULL_MASK_SET)]
             if not detectors:
                 raise ConfigError(
                     f"sequence {self.sequence.name!r} has no detector mask set (only "

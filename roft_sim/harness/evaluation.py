@@ -3,7 +3,7 @@
 :func:`evaluate_run` gives the pose and velocity metrics of one sequence (docs/metrics.md) plus
 the figures that need the fault ledger:
 
-- ``arrivals``: mean position [cm] and rotation [deg] error in the 3 frames before and from each
+- ``sync``: mean position [cm] and rotation [deg] error in the 3 frames before and from each
   pose arrival (:func:`~roft_sim.metrics.error_around_arrivals`);
 - ``outliers``: how many poses the tracker rejected and how many injected outliers it caught
   (only when outliers were injected or anything was rejected);

@@ -32,6 +32,7 @@ __all__ = [
     "WithGroundTruthPoses",
     "ResolvedInputs",
     "resolve_inputs",
+    "check_inputs",
     "resolve_object_model",
     "LazyDepthRenderer",
     "DepthRendererFactory",
@@ -228,6 +229,32 @@ def resolve_inputs(sequence: Sequence, options: RunOptions) -> ResolvedInputs:
         mask_set=_resolve_mask_set(sequence, options.masks),
         flow=_resolve_flow(sequence, options.flow),
     )
+
+
+def check_inputs(sequence: Sequence, options: RunOptions) -> ResolvedInputs:
+    """Checks, without reading images, that a run of ``options`` can be fed from ``sequence``:
+    its pose and mask sets, the flow spec (and a stored flow set it names), the network rates
+    against the camera fps. Callers run it before they touch an output folder.
+
+    Raises:
+        ConfigError: the first problem found, saying what is available.
+    """
+    from roft_sim.sensors.flow_sources import make_flow_source
+
+    inputs = resolve_inputs(sequence, options)
+    if inputs.flow is not None:
+        make_flow_source(inputs.flow, seed=0)
+        spec = inputs.flow
+        while spec.startswith("nvof-like:"):
+            spec = spec.removeprefix("nvof-like:")
+        kind, _, flow_set = spec.partition(":")
+        if kind == "stored" and flow_set not in sequence.flow_sets():
+            raise ConfigError(
+                f"sequence {sequence.name!r} has no stored flow set {flow_set!r}; it has "
+                f"{list(sequence.flow_sets()) or 'none'}; pick one of those or use 'gt' / 'dis'"
+            )
+    options.faults.check_camera_rate(int(sequence.fps))
+    return inputs
 
 
 def resolve_object_model(

@@ -33,6 +33,7 @@ from roft_sim.harness.cells import (
     load_cell_metrics,
 )
 from roft_sim.harness.executors import Executor
+from roft_sim.harness.inputs import check_inputs
 from roft_sim.harness.options import RunOptions
 from roft_sim.harness.outputs import write_json
 from roft_sim.harness.run_dataset import find_sequences
@@ -181,14 +182,17 @@ def _tracker_config(row: PaperRow) -> Any:
 def plan_paper(
     rows: Sequence[PaperRow], sequence_paths: Sequence[Path], *, flow: str, seed: int
 ) -> list[SweepCell]:
-    """The cells: every row on every sequence, under the ``paper`` faults."""
+    """The cells: every row on every sequence, under the ``paper`` faults.
+
+    Raises:
+        ConfigError: a bad seed or flow spec, or a sequence that cannot feed a row's inputs.
+    """
     faults = load_faults(PAPER_FAULTS)
     sequences = [(str(Path(p).resolve()), open_sequence(p)) for p in sequence_paths]
     cells = []
     for row in rows:
         config = _tracker_config(row)
         for path, seq in sequences:
-            faults.check_camera_rate(int(seq.fps))
             options = RunOptions(
                 tracker=row.tracker,
                 tracker_config=config,
@@ -200,6 +204,7 @@ def plan_paper(
                 include_rgb=False,
                 invalid="exclude",
             )
+            check_inputs(seq, options)
             cells.append(
                 SweepCell.create(
                     label=row.key,

@@ -313,6 +313,12 @@ def _sync_rows(metrics: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
 def _run_report(results: Path, out: Path, options: ReportOptions) -> ReportResult:
     run = read_json(results / RUN_FILE)
     metrics = read_json(results / METRICS_FILE)
+    names = [seq["name"] for seq in run["sequences"]]
+    unknown = [n for n in options.sequences or () if n not in names]
+    if unknown:
+        raise ConfigError(
+            f"{str(results)!r} has no sequence {unknown[0]!r}; its sequences: {', '.join(names)}"
+        )
     tracker = run["tracker"]
     opts = run["options"]
     faults = fault_config_from_mapping(dict(opts["faults"]))

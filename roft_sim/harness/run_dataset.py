@@ -30,6 +30,7 @@ from roft_sim.trackers import TrackerSpec, get_tracker_spec, load_tracker_config
 __all__ = [
     "RunResult",
     "SequenceSource",
+    "check_sequence_names",
     "find_sequences",
     "open_sequences",
     "run_sequences",
@@ -104,7 +105,12 @@ def open_sequences(paths: Sequence[str | Path]) -> list[SequenceSource]:
     return out
 
 
-def _check_names(sources: Sequence[SequenceSource]) -> None:
+def check_sequence_names(sources: Sequence[SequenceSource]) -> None:
+    """Sequence names must be unique in a run (they name its folders) and not ``ALL`` / ``MEAN``.
+
+    Raises:
+        ConfigError: a repeated or reserved name.
+    """
     names = [s.sequence.name for s in sources]
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
@@ -158,7 +164,7 @@ def run_sequences(
     t0 = time.perf_counter()
     if not sources:
         raise ConfigError("no sequence to run")
-    _check_names(sources)
+    check_sequence_names(sources)
     spec = spec if spec is not None else get_tracker_spec(options.tracker)
     if options.tracker_config is None:
         options = options.replace(tracker_config=load_tracker_config(spec, None))

@@ -37,6 +37,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -55,6 +56,7 @@ from roft_sim.harness.cells import (
     execute_cells,
     load_cell_metrics,
 )
+from roft_sim.harness.inputs import check_inputs
 from roft_sim.harness.options import InitPolicy, RunOptions
 from roft_sim.harness.outputs import DELIVERIES_FILE, load_deliveries
 from roft_sim.harness.run_dataset import find_sequences
@@ -271,13 +273,26 @@ def plan_sweep(config: SweepConfig) -> list[SweepCell]:
     """Every cell of the grid, in (tracker, faults, value, sequence, seed) order.
 
     Raises:
-        ConfigError: unknown tracker, fault preset, or bad dataset path.
+        ConfigError: unknown tracker, fault preset, bad dataset path, inputs a sequence cannot
+            feed (pose / mask / stored flow set), or a grid value listed twice.
     """
     trackers = _tracker_rows(config)
     base_faults = [(spec, load_faults(spec)) for spec in config.faults]
     paths = find_sequences(config.datasets)
     sequences = [(str(p.resolve()), open_sequence(p)) for p in paths]
     values: list[float | None] = list(config.parameter.values) if config.parameter else [None]
+    probe = RunOptions(
+        tracker=trackers[0][1],
+        faults=base_faults[0][1],
+        flow=config.flow,
+        poses=config.poses,
+        masks=config.masks,
+        init=config.init,
+        include_rgb=config.include_rgb,
+        invalid=config.invalid,
+    )
+    for _, seq in sequences:
+        check_inputs(seq, probe)  # every cell shares these inputs
     cells = []
     for label, name, tracker_config in trackers:
         for fault_label, faults in base_faults:
@@ -314,6 +329,14 @@ def plan_sweep(config: SweepConfig) -> list[SweepCell]:
                                 options=options,
                             )
                         )
+    counts = Counter(c.cell_id for c in cells)
+    repeated = sorted(i for i, n in counts.items() if n > 1)
+    if repeated:
+        raise ConfigError(
+            f"the sweep grid has the cell {repeated[0]!r} more than once ({len(repeated)} "
+            "repeated): a dataset (or sequence), fault configuration or seed is listed twice; "
+            "list each once"
+        )
     return cells
 
 

@@ -285,3 +285,18 @@ def test_dropout_of_detections_in_the_stream():
     delivered = sum(len(o.poses) for o in stream)
     dropped = stream.ledger.summary()["pose"]["fates"]["dropped"]
     assert delivered + dropped == 200 and 30 < dropped < 90
+
+
+def test_auto_mask_set_never_picks_a_ground_truth_set(tiny_sequence):
+    # Fast-YCB and BOP sequences list "gt" and "gt_full" (the amodal ground-truth silhouette)
+    # before the detector sets: "auto" must skip both, or ground truth reaches the tracker.
+    full = [None if m is None else m.copy() for m in tiny_sequence.gt_masks]
+    seq = dataclasses.replace(
+        tiny_sequence, detector_masks={"gt_full": full, **tiny_sequence.detector_masks}
+    )
+    assert seq.mask_sets() == ("gt", "gt_full", "mrcnn")
+    stream = ObservationStream(seq, load_faults("none"), seed=0, flow_source=None)
+    assert stream.mask_set == "mrcnn"
+    only_gt = dataclasses.replace(tiny_sequence, detector_masks={"gt_full": full})
+    with pytest.raises(ConfigError, match="no detector mask set"):
+        ObservationStream(only_gt, load_faults("none"), seed=0, flow_source=None)

@@ -96,3 +96,23 @@ def test_bad_inputs_are_usage_errors_before_writing(dataset, tmp_path, capsys):
     assert main([*base, "--faults", "papper"]) == 2
     assert "did you mean 'paper'" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_repeated_sequences_and_missing_stored_flow_are_usage_errors_before_writing(
+    dataset, tmp_path, capsys
+):
+    out = tmp_path / "out"
+    base = ["run", str(dataset), "--tracker", "detector-hold", "--out", str(out)]
+    twice = ["run", str(dataset), str(dataset / "box_a"), *base[2:]]
+    assert main(twice) == 2
+    assert "sequence names must be unique" in capsys.readouterr().err
+    assert main([*base, "--flow", "stored:nvof_1_slow"]) == 2
+    assert "no stored flow set 'nvof_1_slow'" in capsys.readouterr().err
+    assert main([*base, "--flow", "nvof-like:stored:nvof_1_slow"]) == 2
+    assert "no stored flow set 'nvof_1_slow'" in capsys.readouterr().err
+    assert not out.exists()
+    # --overwrite must not empty the folder of an earlier run before such an error
+    out.mkdir()
+    (out / "keep.txt").write_text("earlier results")
+    assert main([*twice, "--overwrite"]) == 2
+    assert (out / "keep.txt").exists()

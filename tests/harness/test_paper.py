@@ -146,3 +146,21 @@ def test_full_paper_run_at_640x480_with_short_sequences(tmp_path, capsys):
         assert set(entries) == {*paper_tables().objects, ALL}
     table4 = (out / "table4.csv").read_text().splitlines()
     assert len(table4) == 1 + len(PAPER_ROWS)
+
+
+def test_paper_cli_checks_its_arguments_before_touching_the_output(tmp_path, capsys):
+    dataset = write_box_dataset(tmp_path / "data", names=("box_a",), n_frames=12)
+    out = tmp_path / "paper"
+    out.mkdir()
+    (out / "keep.txt").write_text("earlier results")
+    base = ["paper", "--out", str(out), "--overwrite", "--no-plugins"]
+    for bad, message in (
+        (["--frames", "0"], "--frames must be >= 1"),
+        (["--resolution", "abc"], "expected WIDTHxHEIGHT"),
+        (["--flow", "raft"], "unknown flow source"),
+        (["--reuse", str(dataset), "--seed", "-1", "--rows", "detector"], "seed must be"),
+        (["--reuse", str(dataset), "--flow", "raft", "--rows", "roft"], "unknown flow source"),
+    ):
+        assert main([*base, *bad]) == 2, bad
+        assert message in capsys.readouterr().err
+        assert (out / "keep.txt").exists(), bad

@@ -214,3 +214,27 @@ def test_sweep_cli_and_its_errors(dataset, tmp_path, capsys):
     assert "drop --trackers" in capsys.readouterr().err
     assert main(["sweep", str(dataset), "--trackers", "nope", "--out", str(tmp_path / "n")]) == 2
     assert "no tracker named 'nope'" in capsys.readouterr().err
+
+
+def test_a_grid_value_listed_twice_is_a_config_error(dataset):
+    for repeated in (
+        {"faults": ("paper", "paper")},
+        {"seeds": (0, 0)},
+        {"datasets": (dataset, dataset / "box_a")},
+    ):
+        with pytest.raises(ConfigError, match="more than once"):
+            plan_sweep(_config(dataset, **repeated))
+
+
+def test_sweep_cli_checks_inputs_and_repeats_before_writing(dataset, tmp_path, capsys):
+    out = tmp_path / "s"
+    args = ["sweep", str(dataset), "--trackers", "detector-hold", "--out", str(out)]
+    assert main([*args, "--poses", "posecnn"]) == 2
+    assert "no pose set 'posecnn'" in capsys.readouterr().err
+    assert main([*args, "--flow", "raft"]) == 2
+    assert "unknown flow source 'raft'" in capsys.readouterr().err
+    assert main([*args, "--flow", "stored:nvof_1_slow"]) == 2
+    assert "no stored flow set 'nvof_1_slow'" in capsys.readouterr().err
+    assert main([*args, "--faults", "paper,paper"]) == 2
+    assert "more than once" in capsys.readouterr().err
+    assert not out.exists()

@@ -100,3 +100,11 @@ def test_report_of_a_folder_that_is_no_result(tmp_path, capsys):
     assert "its report is tables.md" in capsys.readouterr().err
     assert main(["report", str(tmp_path / "none")]) == 2
     assert "does not exist" in capsys.readouterr().err
+
+
+def test_report_of_an_unknown_sequence_is_a_usage_error(run_dir, tmp_path, capsys):
+    out = tmp_path / "r"
+    code = main(["report", str(run_dir), "--out", str(out), "--no-video", "--sequence", "box_z"])
+    assert code == 2
+    assert "no sequence 'box_z'" in capsys.readouterr().err
+    assert not (out / "report.md").exists()
