@@ -40,11 +40,12 @@ from roft_sim.harness.outputs import (
 from roft_sim.harness.run_dataset import METRICS_FILE, RUN_FILE
 from roft_sim.harness.runner import make_observation_stream
 from roft_sim.metrics import SequenceMetrics, accuracy_curve
+from roft_sim.records import MaskDetection
 from roft_sim.report.overlay import OverlayFrame, VideoWriter, draw_overlay, silhouette_mask
 from roft_sim.report.plotting import LinePlot, save_png, stack_images
 from roft_sim.report.tables import METRIC_COLUMNS, Column, markdown_table
 
-__all__ = ["ReportOptions", "ReportResult", "build_report", "options_from_record"]
+__all__ = ["ReportOptions", "ReportResult", "build_report", "newest_mask", "options_from_record"]
 
 _log = logging.getLogger(__name__)
 
@@ -205,17 +206,16 @@ def _write_video(
     )
     video_path = out_dir / "videos" / f"{name}_overlay.mp4"
     files: list[Path] = []
-    mask: np.ndarray | None = None
+    shown_mask: MaskDetection | None = None
     mask_text = "no mask yet"
     banner_until, banner = -1, None
     wanted = {k for k in still_frames if 0 <= k < n}
     with VideoWriter(video_path, fps=float(sequence.fps)) as video:
         for k in range(n):
             obs = stream.observation(k)
-            if obs.masks:
-                newest = max(obs.masks, key=lambda d: d.capture_k)
-                mask = np.asarray(newest.mask)
-                mask_text = f"mask of frame {newest.capture_k} (arrived {k})"
+            newer = newest_mask(shown_mask, obs.masks)
+            if newer is not shown_mask:
+                shown_mask, mask_text = newer, f"mask of frame {newer.capture_k} (arrived {k})"
             arrived = None
             if obs.poses:
                 det = max(obs.poses, key=lambda d: d.capture_k)
@@ -227,7 +227,7 @@ def _write_video(
                 rgb=np.asarray(sequence.rgb(k)),
                 gt_mask=None if gt is None else silhouette_mask(model, gt.T_cam_obj[k], intr),
                 estimate_mask=silhouette_mask(model, e.T_cam_obj, intr) if e.valid else None,
-                delayed_mask=mask,
+                delayed_mask=None if shown_mask is None else np.asarray(shown_mask.mask),
                 arrived_pose_mask=arrived,
                 banner=banner if k <= banner_until else None,
                 lines=(
@@ -250,6 +250,21 @@ def _write_video(
                 files.append(save_png(out_dir / "stills" / f"{name}_k{k:04d}.png", image))
     files.insert(0, video_path)
     return files, None
+
+
+def newest_mask(
+    shown: MaskDetection | None, arriving: Sequence[MaskDetection]
+) -> MaskDetection | None:
+    """The mask the overlay shows after a frame's arrivals: the one of the latest capture frame.
+
+    A mask delivered late (reordered, stale or duplicated) never replaces one of a later capture
+    frame, so the yellow overlay is always the newest mask the tracker has received.
+    """
+    best = shown
+    for d in arriving:
+        if best is None or d.capture_k > best.capture_k:
+            best = d
+    return best
 
 
 def _still_frames(m: SequenceMetrics | None, arrivals: np.ndarray, n: int) -> list[int]:

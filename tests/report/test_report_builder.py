@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 import cv2
+import numpy as np
 import pytest
 
 from roft_sim.cli import main
@@ -108,3 +109,22 @@ def test_report_of_an_unknown_sequence_is_a_usage_error(run_dir, tmp_path, capsy
     assert code == 2
     assert "no sequence 'box_z'" in capsys.readouterr().err
     assert not (out / "report.md").exists()
+
+
+def test_the_overlay_keeps_the_newest_mask_when_an_older_one_arrives_late():
+    """Review regression: under reordering a mask of an earlier capture frame used to replace
+    the newer one shown, while the report says it shows the newest mask received."""
+    from roft_sim.harness.report_builder import newest_mask
+    from roft_sim.records import MaskDetection
+
+    def mask(capture_k: int, arrival_k: int) -> MaskDetection:
+        return MaskDetection(
+            capture_k=capture_k, arrival_k=arrival_k, mask=np.zeros((2, 2), bool),
+            detection_id=capture_k,
+        )  # fmt: skip
+
+    assert newest_mask(None, ()) is None
+    m12, m6, m18 = mask(12, 18), mask(6, 19), mask(18, 20)
+    assert newest_mask(None, (m6, m12)) is m12
+    assert newest_mask(m12, (m6,)) is m12  # the late, older mask does not replace it
+    assert newest_mask(m12, (m6, m18)) is m18
