@@ -68,11 +68,20 @@ def _run_list(args: argparse.Namespace) -> int:
     return 0
 
 
+MAX_SHOW_FRAMES = 100_000
+"""Longest timeline ``faults show`` prints (about 5 MB of text)."""
+
+
 def _run_show(args: argparse.Namespace) -> int:
     from roft_sim.faults import format_timeline, load_faults, schedule_detections
 
-    if args.frames < 1:
-        raise ConfigError(f"--frames must be >= 1, got {args.frames}")
+    if not 1 <= args.frames <= MAX_SHOW_FRAMES:
+        raise ConfigError(
+            f"--frames must be in 1..{MAX_SHOW_FRAMES} (a timeline to read), got {args.frames}; "
+            "for statistics over long runs use `roft-sim run` and its metrics.json"
+        )
+    if args.width < 10:
+        raise ConfigError(f"--width must be >= 10 frames per line, got {args.width}")
     if args.seed < 0:
         raise ConfigError(f"--seed must be >= 0, got {args.seed}")
     faults = load_faults(args.faults)

@@ -61,7 +61,11 @@ def test_show_errors_exit_with_usage_code(capsys, tmp_path):
     assert main(["faults", "show", "papr"]) == 2
     assert "did you mean 'paper'" in capsys.readouterr().err
     assert main(["faults", "show", "paper", "--frames", "0"]) == 2
-    assert "--frames must be >= 1" in capsys.readouterr().err
+    assert "--frames must be in 1..100000" in capsys.readouterr().err
+    assert main(["faults", "show", "paper", "--frames", "100000001"]) == 2  # used to hang
+    assert "--frames must be in 1..100000" in capsys.readouterr().err
+    assert main(["faults", "show", "paper", "--width", "5"]) == 2  # used to become 10 silently
+    assert "--width must be >= 10" in capsys.readouterr().err
     assert main(["faults", "show", "paper", "--fps", "24"]) == 2
     assert "does not divide the camera rate 24" in capsys.readouterr().err
     bad = tmp_path / "bad.toml"
