@@ -6,7 +6,8 @@ listed in the order of their ``ORDER`` constant. The CLI stays thin: parse, buil
 call the library. Environment variables are read here and nowhere else in the package
 (``ROFT_SIM_ASSETS``, ``ROFT_SIM_CACHE``; ``MUJOCO_GL`` is MuJoCo's own).
 
-Exit codes: 0 success, 1 runtime error, 2 usage or configuration error, 130 interrupted.
+Exit codes: 0 success, 1 runtime error (or stdout closed early, as by ``| head``), 2 usage or
+configuration error, 130 interrupted.
 """
 
 from __future__ import annotations
@@ -14,7 +15,9 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import os
 import pkgutil
+import select
 import sys
 from collections.abc import Sequence
 
@@ -82,6 +85,21 @@ def _configure_logging(verbose: int, quiet: bool) -> None:
     logging.getLogger("roft_sim").setLevel(level)
 
 
+def _stdout_reader_gone() -> bool:
+    """True when stdout is a pipe whose reader has gone (``roft-sim ... | head``); stdout is
+    then pointed at the null device, so that the interpreter's last flush does not fail again."""
+    try:
+        fd = sys.stdout.fileno()
+        poller = select.poll()
+        poller.register(fd, select.POLLOUT)
+        gone = any(events & select.POLLERR for _, events in poller.poll(0))  # Linux: no reader
+        if gone:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), fd)
+    except (OSError, ValueError, AttributeError):  # not a real file, or no poll() here
+        return False
+    return gone
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Runs ``roft-sim`` with ``argv`` (default: ``sys.argv[1:]``) and returns the exit code."""
     parser = build_parser()
@@ -104,6 +122,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"roft-sim {args.verb}: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
+    except BrokenPipeError:
+        if not _stdout_reader_gone():
+            raise  # another pipe: not the reader of our output going away
+        return EXIT_RUNTIME
 
 
 if __name__ == "__main__":
