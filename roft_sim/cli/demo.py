@@ -56,14 +56,21 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.set_defaults(func=_run)
 
 
+MIN_DEMO_FRAMES = 13
+"""Fewest frames for two pose deliveries under the ``paper`` faults (frames 0 and 12)."""
+
+
 def _run(args: argparse.Namespace) -> int:
     from roft_sim.errors import ConfigError
     from roft_sim.generation.jobs import parse_resolution
     from roft_sim.render.gl_backend import require_gl_backend
 
     resolution = parse_resolution(args.resolution)
-    if args.frames < 12:
-        raise ConfigError(f"--frames must be at least 12 (two pose deliveries), got {args.frames}")
+    if args.frames < MIN_DEMO_FRAMES:
+        raise ConfigError(
+            f"--frames must be at least {MIN_DEMO_FRAMES} (two pose deliveries: under the paper "
+            f"faults the second pose arrives at frame 12), got {args.frames}"
+        )
     trackers = tuple(t.strip() for t in args.trackers.split(",") if t.strip())
     if not trackers:
         raise ConfigError("--trackers is empty; give at least one tracker name")
@@ -74,7 +81,9 @@ def _run(args: argparse.Namespace) -> int:
         resolve_tracker(name, None)  # unknown names: exit 2 before anything is rendered
     load_faults(args.faults)  # likewise a bad preset name or file
     require_gl_backend(os.environ)
-    out = prepare_output_dir(args.out, overwrite=args.overwrite, can_resume=False)
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():  # cheap checks first; emptying waits for the scenario
+        prepare_output_dir(out)
 
     from roft_sim.harness.demo import DemoSettings, demo_table_rows, run_demo
     from roft_sim.report.tables import METRIC_COLUMNS, Column, text_table
@@ -86,7 +95,13 @@ def _run(args: argparse.Namespace) -> int:
         faults=args.faults,
         progress=not args.no_progress,
     )
-    result = run_demo(out, settings)
+    result = run_demo(
+        out,
+        settings,
+        prepare_output=lambda path: prepare_output_dir(
+            path, overwrite=args.overwrite, can_resume=False
+        ),
+    )
     if args.json:
         print(json.dumps({"out": str(out), "metrics": result.metrics}, indent=2))
         return 0

@@ -11,7 +11,7 @@ NVOF-like DIS flow stored with the dataset).
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -64,11 +64,19 @@ class DemoResult:
     """Frames generated and tracked."""
 
 
-def run_demo(out_dir: str | Path, settings: DemoSettings | None = None) -> DemoResult:
-    """Runs the demo into ``out_dir`` (which must exist and be empty, or hold a previous demo).
+def run_demo(
+    out_dir: str | Path,
+    settings: DemoSettings | None = None,
+    *,
+    prepare_output: Callable[[Path], Any] | None = None,
+) -> DemoResult:
+    """Runs the demo into ``out_dir`` (which must exist and be empty, or hold a previous demo,
+    unless ``prepare_output`` makes it so).
 
     Writes ``dataset/`` (Fast-YCB layout), ``runs/<tracker>/`` (one ``roft-sim run`` folder each)
-    and ``summary.json``.
+    and ``summary.json``. ``prepare_output`` is called with ``out_dir`` once the scenario is
+    checked (trajectory long enough for ``settings.frames``) and before anything is written,
+    e.g. to create or empty the folder; so a bad setting leaves the folder untouched.
     """
     s = settings or DemoSettings()
     out = Path(out_dir)
@@ -82,6 +90,7 @@ def run_demo(out_dir: str | Path, settings: DemoSettings | None = None) -> DemoR
         overrides=ScenarioOverrides(frames=s.frames, resolution=s.resolution),
         sequence_naming="object",
         preset="fast-ycb",
+        prepare_output=None if prepare_output is None else (lambda _dataset: prepare_output(out)),
     )
     sources = open_sequences([dataset])
     faults = load_faults(s.faults)

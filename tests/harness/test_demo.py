@@ -39,10 +39,23 @@ def test_demo_refuses_bad_arguments_before_rendering(tmp_path, capsys):
     out = tmp_path / "demo"
     assert main(["demo", "--out", str(out), "--trackers", "roft,nope"]) == 2
     assert "no tracker named 'nope'" in capsys.readouterr().err
-    assert main(["demo", "--out", str(out), "--frames", "5"]) == 2
-    assert "at least 12" in capsys.readouterr().err
+    assert main(["demo", "--out", str(out), "--frames", "12"]) == 2  # one delivery only
+    assert "at least 13 (two pose deliveries" in capsys.readouterr().err
     assert main(["demo", "--out", str(out), "--resolution", "big"]) == 2
     assert "WIDTHxHEIGHT" in capsys.readouterr().err
     assert main(["demo", "--out", str(out), "--faults", "papr"]) == 2
     assert "did you mean 'paper'" in capsys.readouterr().err
     assert not out.exists()
+
+
+@pytest.mark.render
+def test_demo_checks_the_trajectory_length_before_touching_the_output(tmp_path, capsys):
+    out = tmp_path / "demo"
+    assert main(["demo", "--out", str(out), "--frames", "100000", "--no-progress"]) == 2
+    assert "use at most --frames" in capsys.readouterr().err
+    assert not out.exists()  # used to be created, empty
+    out.mkdir()
+    (out / "keep.txt").write_text("earlier results")
+    argv = ["demo", "--out", str(out), "--frames", "100000", "--overwrite", "--no-progress"]
+    assert main(argv) == 2
+    assert (out / "keep.txt").read_text() == "earlier results"  # --overwrite emptied it first
