@@ -82,10 +82,11 @@ def toml_from_dataclass(config: Any, table: str = "") -> str:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from roft_sim.trackers import ENTRY_POINT_GROUP, discover_trackers, get_tracker_spec
+    from roft_sim.cli.run import resolve_tracker
+    from roft_sim.trackers import ENTRY_POINT_GROUP, discover_trackers
 
     if args.defaults:
-        spec = get_tracker_spec(args.defaults)
+        spec, _ = resolve_tracker(args.defaults, None)  # unknown names: exit 2, as in run
         print(f"# default settings of tracker {spec.name!r} ({spec.config_type.__name__})")
         print(toml_from_dataclass(spec.config_type()), end="")
         return 0

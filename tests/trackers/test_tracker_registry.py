@@ -65,8 +65,8 @@ def test_ablation_configs_round_trip_through_toml(tmp_path, ablation):
     assert load_tracker_config(get_tracker_spec("roft"), path) == cfg
 
 
-def test_unknown_tracker_is_a_runtime_error_naming_the_installed_ones(capsys):
-    assert main(["trackers", "--defaults", "kalman-magic"]) == 1
+def test_unknown_tracker_is_a_usage_error_naming_the_installed_ones(capsys):
+    assert main(["trackers", "--defaults", "kalman-magic"]) == 2  # as in run, demo and sweep
     err = capsys.readouterr().err
     assert "no tracker named 'kalman-magic'" in err and "detector-hold" in err
 
