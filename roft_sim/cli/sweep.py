@@ -41,7 +41,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "sweep). Writes summary.{md,csv,tex}, cells.csv, timing.csv and plots/ (error vs the "
         "parameter, per-frame error traces with pose arrivals). See docs/running.md.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
-        epilog="examples:\n"
+        epilog="examples (sweeps/delay.toml: a sweep file you write, format in docs/running.md):\n"
         "  roft-sim sweep --config sweeps/delay.toml --out sweeps/delay --workers 2\n"
         "  roft-sim sweep data/ci --trackers roft,naive-delay,pose-only-ukf "
         "--param delay=0:20:2 --out sweeps/delay\n"

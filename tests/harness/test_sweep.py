@@ -177,6 +177,20 @@ def test_sweep_file_paths_are_relative_to_the_file(dataset, tmp_path):
         load_sweep_config(path)
 
 
+def test_the_sweep_file_shown_in_docs_running_md_loads(tmp_path):
+    """The documented example stays a valid sweep file (the help's examples point there)."""
+    import re
+
+    docs = Path(__file__).resolve().parents[2] / "docs" / "running.md"
+    block = re.search(r"A sweep file \(strict TOML.*?```toml\n(.*?)```", docs.read_text(), re.S)
+    assert block is not None, "docs/running.md lost its sweep-file example"
+    path = tmp_path / "sweep.toml"
+    path.write_text(block.group(1))
+    config = load_sweep_config(path)
+    assert config.parameter is not None and config.parameter.name == "delay"
+    assert config.variants[0].config == tmp_path / "roft_no_sync.toml"
+
+
 def test_serial_executor_wraps_errors():
     with pytest.raises(WorkUnitError, match=r"work unit 'x' failed: ValueError"):
         list(SerialExecutor().map_unordered(int, ["1", "x"]))
