@@ -19,8 +19,12 @@ def prepare_output_dir(
     is, so finished work is not redone). ``can_resume`` False: the verb has no ``--resume``, so
     the message does not suggest it.
 
+    ``overwrite`` never empties the file-system root, the home folder, the current folder or
+    a folder that contains it (``--out . --overwrite`` is refused, not obeyed).
+
     Raises:
-        ConfigError: the path is a file, or a non-empty directory without overwrite/resume.
+        ConfigError: the path is a file, a non-empty directory without overwrite/resume, or a
+            folder ``overwrite`` must not empty.
     """
     path = Path(path)
     if path.exists() and not path.is_dir():
@@ -29,6 +33,7 @@ def prepare_output_dir(
         if overwrite and resume:
             raise ConfigError("--overwrite and --resume contradict each other; pick one")
         if overwrite:
+            _refuse_to_empty_a_working_folder(path)
             shutil.rmtree(path)
         elif not resume:
             hint = " or --resume to continue an interrupted run" if can_resume else ""
@@ -37,3 +42,16 @@ def prepare_output_dir(
             )
     path.mkdir(parents=True, exist_ok=True)
     return path
+
+
+def _refuse_to_empty_a_working_folder(path: Path) -> None:
+    """Raises ConfigError when ``path`` is the root, the home folder, or the current folder or
+    one of its ancestors: emptying one of those would delete far more than a previous output."""
+    target = path.resolve()
+    cwd = Path.cwd().resolve()
+    home = Path.home().resolve()
+    if target == Path(target.anchor) or target in (home, cwd) or target in cwd.parents:
+        raise ConfigError(
+            f"--overwrite would empty {str(target)!r} (the root, home or current folder, or one "
+            "that contains it); give --out a dedicated folder, e.g. out/run1"
+        )

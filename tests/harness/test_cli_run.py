@@ -86,6 +86,15 @@ def test_non_empty_out_needs_overwrite(dataset, tmp_path, capsys):
     assert not (out / "keep.txt").exists()
 
 
+def test_out_dot_overwrite_is_refused_not_obeyed(dataset, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "precious.txt").write_text("x")
+    args = ["run", str(dataset), "--tracker", "detector-hold", "--flow", "none", "--out", "."]
+    assert main([*args, "--overwrite"]) == 2
+    assert "--overwrite would empty" in capsys.readouterr().err
+    assert (tmp_path / "precious.txt").exists()
+
+
 def test_bad_inputs_are_usage_errors_before_writing(dataset, tmp_path, capsys):
     out = tmp_path / "out"
     base = ["run", str(dataset), "--tracker", "detector-hold", "--out", str(out)]
