@@ -70,7 +70,12 @@ from roft_sim.datasets.model_files import (
     write_mesh_ply_mm,
     write_points_xyz,
 )
-from roft_sim.datasets.reader_base import SequenceReaderBase, read_flow_field, subfolder_names
+from roft_sim.datasets.reader_base import (
+    SequenceReaderBase,
+    check_time_stamps,
+    read_flow_field,
+    subfolder_names,
+)
 from roft_sim.datasets.writer_base import StreamingWriter, WriterSettings
 from roft_sim.errors import ConfigError, DatasetFormatError, located
 from roft_sim.geometry.camera import CameraIntrinsics
@@ -423,6 +428,7 @@ class BopSequence(SequenceReaderBase):
                 raise DatasetFormatError(
                     f"{located(time_path)}: bad or missing entry {e}"
                 ) from None
+            check_time_stamps(self._t_s, time_path, lambda k: f"image {self._im_ids[k]}")
         else:
             self._t_s = np.arange(len(self._im_ids)) / self._fps
         self._T_world_cam = np.stack(

@@ -57,7 +57,12 @@ from roft_sim.datasets.model_files import (
     write_mesh_obj,
     write_points_xyz,
 )
-from roft_sim.datasets.reader_base import SequenceReaderBase, read_flow_field, subfolder_names
+from roft_sim.datasets.reader_base import (
+    SequenceReaderBase,
+    check_time_stamps,
+    read_flow_field,
+    subfolder_names,
+)
 from roft_sim.datasets.writer_base import StreamingWriter, WriterSettings
 from roft_sim.errors import DatasetFormatError, located
 from roft_sim.records import FlowField, ObjectModel, PoseTrack
@@ -238,6 +243,7 @@ class FastYcbSequence(SequenceReaderBase):
         if len(rows) == 0:
             raise DatasetFormatError(f"{located(data_path)} has no rows (one per frame expected)")
         self._t_s = rows[:, 0].copy()
+        check_time_stamps(self._t_s, data_path, lambda k: f"line {k + 1} (frame {k})")
         self._T_world_cam, _ = transforms_from_pose_rows(
             rows, data_path, allow_zero_rows=True, t_col=2
         )

@@ -38,7 +38,7 @@ from roft_sim.datasets.base import GT_MASK_SET, DetectorPoses
 from roft_sim.datasets.fast_ycb_codec import S10_5_SCALE
 from roft_sim.datasets.frames import GT_FULL_MASK_SET, DatasetFrame
 from roft_sim.datasets.metadata import dumps_json
-from roft_sim.datasets.reader_base import SequenceReaderBase
+from roft_sim.datasets.reader_base import SequenceReaderBase, check_time_stamps
 from roft_sim.datasets.writer_base import StreamingWriter, WriterSettings
 from roft_sim.errors import ConfigError, DatasetFormatError, located
 from roft_sim.geometry.camera import CameraIntrinsics
@@ -407,6 +407,7 @@ class Hdf5Sequence(SequenceReaderBase):
                 int(f.attrs["height_px"]),
             )
             self._t_s = self._small("time_s", (self._n,))
+            check_time_stamps(self._t_s, self.path, lambda k: f"/time_s frame {k}")
             self._T_world_cam = self._transforms("T_world_cam")
             for key in ("rgb", "depth_m"):
                 want = (self._n, *self._intrinsics.shape) + ((3,) if key == "rgb" else ())

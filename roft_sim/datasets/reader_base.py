@@ -16,11 +16,11 @@ from numpy.typing import NDArray
 
 from roft_sim.datasets.fast_ycb_codec import decode_flow_float, flow_grid_px
 from roft_sim.datasets.image_files import decode_png_mask, read_file_bytes
-from roft_sim.errors import located
+from roft_sim.errors import DatasetFormatError, located
 from roft_sim.geometry.camera import CameraIntrinsics
 from roft_sim.records import FlowField
 
-__all__ = ["SequenceReaderBase", "read_flow_field", "subfolder_names"]
+__all__ = ["SequenceReaderBase", "check_time_stamps", "read_flow_field", "subfolder_names"]
 
 
 class SequenceReaderBase:
@@ -66,6 +66,25 @@ class SequenceReaderBase:
         if kind not in cache:
             cache[kind] = find()
         return cache[kind]
+
+
+def check_time_stamps(
+    t_s: NDArray[np.float64], path: Path, frame_label: Callable[[int], str]
+) -> None:
+    """Raises :class:`DatasetFormatError` unless the ``(N,)`` time stamps [s] are finite and
+    strictly increasing (what every writer guarantees and every tracker relies on);
+    ``frame_label(k)`` names frame ``k`` in the message (a line, an image id)."""
+    bad = np.flatnonzero(~np.isfinite(t_s))
+    if bad.size:
+        k = int(bad[0])
+        raise DatasetFormatError(f"{located(path)}: {frame_label(k)}: time stamp {t_s[k]} s")
+    steps = np.flatnonzero(np.diff(t_s) <= 0)
+    if steps.size:
+        k = int(steps[0]) + 1
+        raise DatasetFormatError(
+            f"{located(path)}: {frame_label(k)}: time stamp {t_s[k]} s does not increase (the "
+            f"frame before has {t_s[k - 1]} s); time stamps must increase frame by frame"
+        )
 
 
 def subfolder_names(folder: Path) -> tuple[str, ...]:

@@ -160,7 +160,7 @@ def test_bad_json(fast_ycb: Path):
 
 def test_data_txt_with_a_bad_camera_axis(fast_ycb: Path):
     path = fast_ycb / "data.txt"
-    _edit_line(path, 2, "0.1 0.1 0 0 0 0 0 0 0.3")
+    _edit_line(path, 2, "0.04 0.04 0 0 0 0 0 0 0.3")
     with pytest.raises(DatasetFormatError, match=rf"'{path}', line 2: rotation axis"):
         open_sequence(fast_ycb)
 
@@ -402,3 +402,21 @@ def test_cam_k_json_with_a_boolean_size(fast_ycb: Path):
     _edit_json(path, lambda d: d.__setitem__("width", True))
     with pytest.raises(DatasetFormatError, match=r"width = True is not a number"):
         open_sequence(fast_ycb)
+
+
+def test_time_stamps_that_do_not_increase(fast_ycb: Path, bop: Path, hdf5: Path):
+    """Review regression: the readers accepted what the writers refuse (and trackers divide by)."""
+    line = (fast_ycb / "data.txt").read_text().splitlines()[1].split()
+    line[0] = "0"  # frame 1 at the time of frame 0
+    _edit_line(fast_ycb / "data.txt", 2, " ".join(line))
+    with pytest.raises(DatasetFormatError, match=r"line 2 \(frame 1\): time stamp 0.0 s does not"):
+        open_sequence(fast_ycb)
+    _edit_json(bop / "extras" / "scene_time.json", lambda d: d["3"].__setitem__("t_s", 0.01))
+    with pytest.raises(DatasetFormatError, match=r"scene_time.json': image 3: time stamp 0.01 s"):
+        open_sequence(bop)
+    with h5py.File(hdf5, "a") as f:
+        f["time_s"][2] = f["time_s"][1]
+    with pytest.raises(
+        DatasetFormatError, match=r"/time_s frame 2: time stamp .* does not increase"
+    ):
+        open_sequence(hdf5)
