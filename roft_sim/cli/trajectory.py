@@ -46,6 +46,32 @@ _log = logging.getLogger(__name__)
 SYNTHETIC_STATS_RATE_HZ = 120.0
 """Rate at which ``stats --synthetic`` samples the motion unless ``--fps`` is given [Hz]."""
 
+MAX_SYNTHETIC_DURATION_S = 3600.0
+"""Longest ``--synthetic --duration-s`` [s]: an hour already takes about 2 s and 300 MB to
+sample at 120 Hz (a 40 MB CSV at 30 Hz), far beyond any tracking sequence; a longer value is
+taken for a typo (milliseconds for seconds) instead of running for minutes."""
+
+MAX_SAMPLES = 1_000_000
+"""Most samples one ``stats --fps`` or ``export`` may take (about 700 MB while sampling); more
+(a huge ``--fps``, or a tiny ``--speed-scale``) is refused instead of running out of memory."""
+
+_FILE_ONLY_OPTIONS = (
+    ("joint", "--joint"),
+    ("relative_to", "--relative-to"),
+    ("object_id", "--object-id"),
+    ("sample_rate_hz", "--sample-rate-hz"),
+    ("lowpass_hz", "--lowpass-hz"),
+    ("drift_window_s", "--drift-window-s"),
+    ("window_s", "--window-s"),
+    ("speed_scale", "--speed-scale"),
+    ("min_in_view_fraction", "--min-in-view-fraction"),
+    ("include_gaps", "--include-gaps"),
+)
+"""Options of a trajectory FILE (``Namespace`` name, flag): refused with ``--synthetic``."""
+
+_SYNTHETIC_ONLY_OPTIONS = (("seed", "--seed"), ("duration_s", "--duration-s"))
+"""Options of ``--synthetic`` (``Namespace`` name, flag): refused with a FILE."""
+
 
 def _add_source_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("file", nargs="?", type=Path, help="trajectory file (or --synthetic)")
@@ -56,14 +82,20 @@ def _add_source_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--sample-rate-hz", type=float, help="Fast-YCB/BOP: frame rate of the file (default 30)"
     )
-    parser.add_argument("--lowpass-hz", type=float, help="zero-phase low-pass cut-off [Hz]")
+    parser.add_argument("--lowpass-hz", type=float, help="file: zero-phase low-pass cut-off [Hz]")
     parser.add_argument(
-        "--drift-window-s", type=float, help="subtract a moving average of the position [s]"
+        "--drift-window-s", type=float, help="file: subtract a moving average of the position [s]"
     )
     parser.add_argument(
-        "--window-s", type=float, nargs=2, metavar=("START", "END"), help="keep this time span"
+        "--window-s",
+        type=float,
+        nargs=2,
+        metavar=("START", "END"),
+        help="file: keep this time span [s]",
     )
-    parser.add_argument("--speed-scale", type=float, default=1.0, help="play faster (>1)/slower")
+    parser.add_argument(
+        "--speed-scale", type=float, help="file: play faster (>1) or slower (<1) (default 1)"
+    )
     parser.add_argument(
         "--working-distance-m",
         type=float,
@@ -75,15 +107,17 @@ def _add_source_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--min-in-view-fraction",
         type=float,
-        help="fail when less of the placed motion stays in view (export default 0.5; stats "
-        "only reports it)",
+        help="file: fail when less of the placed motion stays in view (export default 0.5; "
+        "stats only reports it)",
     )
     parser.add_argument(
         "--synthetic", action="store_true", help="use the synthetic generator instead of a file"
     )
-    parser.add_argument("--seed", type=int, default=0, help="synthetic: seed (default 0)")
+    parser.add_argument("--seed", type=int, help="synthetic: seed, >= 0 (default 0)")
     parser.add_argument(
-        "--duration-s", type=float, default=10.0, help="synthetic: duration [s] (default 10)"
+        "--duration-s",
+        type=float,
+        help=f"synthetic: duration [s], at most {MAX_SYNTHETIC_DURATION_S:g} (default 10)",
     )
 
 
@@ -105,7 +139,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     stats.add_argument(
         "--include-gaps",
         action="store_true",
-        help="also count samples where the spline bridges gaps in the file's time stamps",
+        help="file: also count samples where the spline bridges gaps in its time stamps",
     )
     stats.add_argument("--json", action="store_true", help="print a JSON object")
     stats.set_defaults(func=_run_stats)
@@ -123,17 +157,29 @@ def trajectory_config_from_args(
     """The trajectory config that the command-line arguments describe.
 
     Raises:
-        ConfigError: contradictory or missing arguments.
+        ConfigError: contradictory, missing or out-of-range arguments, or an option of the
+            other source (a file's ``--lowpass-hz`` with ``--synthetic``, ``--seed`` with a file).
     """
     working_distance_m = (float(args.working_distance_m[0]), float(args.working_distance_m[1]))
     if args.synthetic:
         if args.file is not None or args.format is not None:
             raise ConfigError("give either FILE --format ... or --synthetic, not both")
+        _refuse_options(args, _FILE_ONLY_OPTIONS, "a trajectory FILE, not to --synthetic")
+        seed = 0 if args.seed is None else args.seed
+        if seed < 0:
+            raise ConfigError(f"--seed must be an integer >= 0, got {seed}; e.g. --seed 0")
+        duration_s = 10.0 if args.duration_s is None else args.duration_s
+        if not (math.isfinite(duration_s) and 0 < duration_s <= MAX_SYNTHETIC_DURATION_S):
+            raise ConfigError(
+                f"--duration-s must be a positive number of seconds, at most "
+                f"{MAX_SYNTHETIC_DURATION_S:g} (an hour), got {duration_s}"
+            )
         return SyntheticMotionConfig(
-            seed=args.seed, duration_s=args.duration_s, working_distance_m=working_distance_m
+            seed=seed, duration_s=duration_s, working_distance_m=working_distance_m
         )
     if args.file is None or args.format is None:
         raise ConfigError("give FILE and --format (tum, bvh, fast-ycb, bop, csv), or --synthetic")
+    _refuse_options(args, _SYNTHETIC_ONLY_OPTIONS, "--synthetic, not to a FILE")
     fraction = args.min_in_view_fraction
     placement = PlacementConfig(
         working_distance_m=working_distance_m,
@@ -149,9 +195,19 @@ def trajectory_config_from_args(
         lowpass_hz=args.lowpass_hz,
         remove_drift_window_s=args.drift_window_s,
         window_s=None if args.window_s is None else tuple(args.window_s),
-        speed_scale=args.speed_scale,
+        speed_scale=1.0 if args.speed_scale is None else args.speed_scale,
         placement=placement,
     )
+
+
+def _refuse_options(
+    args: argparse.Namespace, options: tuple[tuple[str, str], ...], applies_to: str
+) -> None:
+    values = [(getattr(args, name, None), flag) for name, flag in options]
+    given = [flag for value, flag in values if value is not None and value is not False]
+    if given:
+        verb, pronoun = ("apply", "them") if len(given) > 1 else ("applies", "it")
+        raise ConfigError(f"{', '.join(given)} {verb} only to {applies_to}; remove {pronoun}")
 
 
 def format_speed_table(stats: SpeedStatistics, title: str) -> str:
@@ -180,7 +236,14 @@ def _build(
     config = trajectory_config_from_args(
         args, default_min_in_view_fraction=default_min_in_view_fraction
     )
-    return config, build_trajectory(config, FAST_YCB_CAMERA)
+    trajectory = build_trajectory(config, FAST_YCB_CAMERA)
+    span_s = trajectory.end_s - trajectory.start_s
+    if args.fps is not None and span_s * args.fps >= MAX_SAMPLES:
+        raise ConfigError(
+            f"--fps {args.fps:g} over {span_s:g} s gives more than {MAX_SAMPLES} samples; "
+            "lower --fps (or the duration)"
+        )
+    return config, trajectory
 
 
 def _run_stats(args: argparse.Namespace) -> int:
@@ -214,6 +277,11 @@ def _run_stats(args: argparse.Namespace) -> int:
 
 
 def _run_export(args: argparse.Namespace) -> int:
+    if args.out.is_dir():
+        raise ConfigError(
+            f"--out must be a file path, {str(args.out)!r} is a folder; give e.g. "
+            f"{str(args.out / 'trajectory.csv')!r}"
+        )
     if args.out.exists() and not args.overwrite:
         raise ConfigError(f"{str(args.out)!r} exists; pass --overwrite to replace it")
     if args.out.parent and not args.out.parent.is_dir():

@@ -60,7 +60,7 @@ class SyntheticMotionConfig:
     kind: Literal["synthetic"] = "synthetic"
     """Tells trajectory configs apart in scenario files."""
     seed: int = 0
-    """Seed of the generator; the same seed gives the same motion."""
+    """Seed of the generator (>= 0); the same seed gives the same motion."""
     duration_s: float = 10.0
     """Length of the motion [s]."""
     peak_linear_speed_mps: float = 0.6
@@ -108,6 +108,10 @@ class SyntheticMotionConfig:
     """Duration range of a hold [s]."""
 
     def __post_init__(self) -> None:
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int | np.integer):
+            raise ConfigError(f"seed must be an integer >= 0, got {self.seed!r}")
+        if self.seed < 0:
+            raise ConfigError(f"seed must be an integer >= 0, got {self.seed}")
         for name in (
             "duration_s",
             "peak_linear_speed_mps",
