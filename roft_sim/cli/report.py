@@ -64,6 +64,18 @@ def _run(args: argparse.Namespace) -> int:
             f"results folder {str(args.results)!r} does not exist; give the --out folder of "
             "roft-sim run or roft-sim sweep"
         )
+    out = args.out if args.out is not None else args.results / "report"
+    flag = "--out" if args.out is not None else "the default report folder"
+    if out.exists() and not out.is_dir():
+        raise ConfigError(
+            f"{flag} {str(out)!r} is a file; the report is a folder (report.md, plots/, "
+            "videos/): give a folder path, or remove the file"
+        )
+    blocker = next((p for p in out.parents if p.exists() and not p.is_dir()), None)
+    if blocker is not None:
+        raise ConfigError(
+            f"{flag} {str(out)!r} lies under {str(blocker)!r}, which is a file; give a folder path"
+        )
     options = ReportOptions(
         video=not args.no_video,
         max_video_frames=args.max_video_frames,

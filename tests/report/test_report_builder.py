@@ -111,6 +111,17 @@ def test_report_of_an_unknown_sequence_is_a_usage_error(run_dir, tmp_path, capsy
     assert not (out / "report.md").exists()
 
 
+def test_report_out_that_is_a_file_is_a_usage_error(run_dir, tmp_path, capsys):
+    """Review regression: --out FILE used to end in a NotADirectoryError traceback."""
+    afile = tmp_path / "report.md"
+    afile.write_text("kept")
+    assert main(["report", str(run_dir), "--out", str(afile), "--no-video"]) == 2
+    assert f"--out {str(afile)!r} is a file" in capsys.readouterr().err
+    assert main(["report", str(run_dir), "--out", str(afile / "sub"), "--no-video"]) == 2
+    assert f"lies under {str(afile)!r}, which is a file" in capsys.readouterr().err
+    assert afile.read_text() == "kept"
+
+
 def test_the_overlay_keeps_the_newest_mask_when_an_older_one_arrives_late():
     """Review regression: under reordering a mask of an earlier capture frame used to replace
     the newer one shown, while the report says it shows the newest mask received."""
