@@ -23,7 +23,6 @@ from roft_sim.cli.output_dirs import prepare_output_dir
 from roft_sim.datasets import (
     DATASET_FORMATS,
     detect_format,
-    list_sequences,
     open_sequence,
     write_sequence,
 )
@@ -53,7 +52,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--max-flow-frames",
         type=int,
         default=20,
-        help="fast-ycb: frames per flow set used for the flow-direction check (default 20)",
+        help="fast-ycb: frames per flow set used for the flow-direction check, >= 1 (default 20)",
     )
     check.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
     check.set_defaults(func=_run_check)
@@ -72,13 +71,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _sequences(path: Path) -> list[Path]:
-    found = list_sequences(path)
-    if not found:
-        raise ConfigError(
-            f"no sequence under {str(path)!r}: expected Fast-YCB folders (cam_K.json + data.txt), "
-            "BOP scenes (scene_camera.json) or .h5 files"
-        )
-    return found
+    """The sequences under PATH; a missing PATH or one without sequences is a usage error (exit
+    2), worded as ``roft-sim run`` and ``sweep`` word it."""
+    from roft_sim.harness.run_dataset import find_sequences
+
+    try:
+        return find_sequences([path])
+    except DatasetFormatError as e:
+        raise ConfigError(str(e)) from None
 
 
 def read_every_frame(path: Path, fmt: str | None = None) -> list[str]:
@@ -107,6 +107,11 @@ def read_every_frame(path: Path, fmt: str | None = None) -> list[str]:
 
 
 def _run_check(args: argparse.Namespace) -> int:
+    if args.max_flow_frames < 1:
+        raise ConfigError(
+            f"--max-flow-frames must be at least 1 (frames per flow set checked against the "
+            f"ground-truth motion), got {args.max_flow_frames}"
+        )
     results = []
     for path in _sequences(args.path):
         fmt = args.format or detect_format(path)

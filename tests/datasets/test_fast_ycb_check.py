@@ -261,4 +261,26 @@ def test_cli_info_and_convert(tmp_path: Path, capsys):
     assert main(["dataset", "convert", str(tmp_path / "src"), "--to", "hdf5", "--out",
                  str(tmp_path / "out")]) == 2  # fmt: skip
     assert "not empty" in capsys.readouterr().err
-    assert main(["dataset", "info", str(tmp_path / "nothing")]) == 1
+    assert main(["dataset", "info", str(tmp_path / "nothing")]) == 2
+
+
+@pytest.mark.parametrize("verb", ["check", "info", "convert"])
+def test_cli_a_missing_path_is_a_usage_error_like_run(verb: str, tmp_path: Path, capsys):
+    """Review regression: a missing PATH exited 1 while an empty folder (and roft-sim run with a
+    missing path) exit 2."""
+    out = tmp_path / "out"
+    extra = ["--to", "hdf5", "--out", str(out)] if verb == "convert" else []
+    missing = tmp_path / "nothing"
+    assert main(["dataset", verb, str(missing), *extra]) == 2
+    assert f"dataset path {str(missing)!r} does not exist" in capsys.readouterr().err
+    (tmp_path / "empty").mkdir()
+    assert main(["dataset", verb, str(tmp_path / "empty"), *extra]) == 2
+    assert "no sequence found under" in capsys.readouterr().err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("frames", ["0", "-1"])
+def test_cli_check_needs_at_least_one_flow_frame(good_dataset: Path, frames: str, capsys):
+    """Review regression: --max-flow-frames -1 silently skipped the flow-direction check."""
+    assert main(["dataset", "check", str(good_dataset), "--max-flow-frames", frames]) == 2
+    assert "--max-flow-frames must be at least 1" in capsys.readouterr().err
