@@ -25,6 +25,7 @@ from roft_sim.assets import (
     install_assets,
     list_objects,
 )
+from roft_sim.errors import ConfigError
 
 __all__ = ["register"]
 
@@ -88,6 +89,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def _run_list(args: argparse.Namespace) -> int:
     assets_dir, cache_dir = _assets_dir(args), _cache_dir(args)
+    if assets_dir is not None and not assets_dir.is_dir():  # as roft-sim generate --assets
+        given = "--assets" if args.assets is not None else "$ROFT_SIM_ASSETS"
+        raise ConfigError(
+            f"{given} {str(assets_dir)!r} is not a folder; give a folder of YCB objects "
+            "(<name>/google_16k/textured.obj) or leave it out"
+        )
     rows = []
     for info in list_objects():
         path = find_ycb_mesh(info.name, assets_dir=assets_dir, cache_dir=cache_dir)

@@ -64,6 +64,15 @@ def test_list_reads_roft_sim_assets(env, capsys, monkeypatch):
     )
 
 
+def test_list_of_a_missing_assets_folder_fails_like_generate(env, capsys, monkeypatch):
+    """Review regression: list printed every object as a stand-in and exited 0."""
+    assert main(["assets", "list", "--assets", str(env / "nowhere")]) == 2
+    assert f"--assets {str(env / 'nowhere')!r} is not a folder" in capsys.readouterr().err
+    monkeypatch.setenv("ROFT_SIM_ASSETS", str(env / "gone"))
+    assert main(["assets", "list"]) == 2
+    assert f"$ROFT_SIM_ASSETS {str(env / 'gone')!r} is not a folder" in capsys.readouterr().err
+
+
 def test_install_errors_map_to_exit_codes(env, capsys):
     assert main(["assets", "install", "--from", str(env), "--objects", "009_jello"]) == 2
     assert "did you mean '009_gelatin_box'" in capsys.readouterr().err
