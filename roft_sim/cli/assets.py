@@ -32,11 +32,27 @@ __all__ = ["register"]
 ORDER = 20
 
 
-def _assets_dir(args: argparse.Namespace) -> Path | None:
+def assets_dir_from_args(args: argparse.Namespace) -> Path | None:
+    """The folder of real YCB meshes: ``--assets``, else ``$ROFT_SIM_ASSETS``, else None.
+
+    The one place the verbs (assets list, generate, paper, preview) read it.
+
+    Raises:
+        ConfigError: the folder given does not exist or is not a folder (naming where it came
+            from), so a typo is not silently replaced by the procedural stand-ins.
+    """
     if args.assets is not None:
-        return args.assets
-    value = os.environ.get("ROFT_SIM_ASSETS")
-    return Path(value).expanduser() if value else None
+        path, given = Path(args.assets), "--assets"
+    elif os.environ.get("ROFT_SIM_ASSETS"):
+        path, given = Path(os.environ["ROFT_SIM_ASSETS"]).expanduser(), "$ROFT_SIM_ASSETS"
+    else:
+        return None
+    if not path.is_dir():
+        raise ConfigError(
+            f"{given} {str(path)!r} is not a folder; give a folder of YCB objects "
+            "(<name>/google_16k/textured.obj) or leave it out"
+        )
+    return path
 
 
 def _cache_dir(args: argparse.Namespace) -> Path:
@@ -88,13 +104,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _run_list(args: argparse.Namespace) -> int:
-    assets_dir, cache_dir = _assets_dir(args), _cache_dir(args)
-    if assets_dir is not None and not assets_dir.is_dir():  # as roft-sim generate --assets
-        given = "--assets" if args.assets is not None else "$ROFT_SIM_ASSETS"
-        raise ConfigError(
-            f"{given} {str(assets_dir)!r} is not a folder; give a folder of YCB objects "
-            "(<name>/google_16k/textured.obj) or leave it out"
-        )
+    assets_dir, cache_dir = assets_dir_from_args(args), _cache_dir(args)
     rows = []
     for info in list_objects():
         path = find_ycb_mesh(info.name, assets_dir=assets_dir, cache_dir=cache_dir)

@@ -23,6 +23,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from roft_sim.cli.assets import assets_dir_from_args
 from roft_sim.cli.output_dirs import prepare_output_dir
 from roft_sim.errors import ConfigError
 
@@ -190,13 +191,6 @@ def executor_from_args(args: argparse.Namespace) -> Any:
     return make_executor(args.workers, kind=args.executor, address=args.address, worker_env=env)
 
 
-def _assets_dir(args: argparse.Namespace) -> Path | None:
-    if args.assets is not None:
-        return args.assets
-    value = os.environ.get("ROFT_SIM_ASSETS")
-    return Path(value).expanduser() if value else None
-
-
 def _scenario_paths(args: argparse.Namespace) -> tuple[list[Path], str | None]:
     from roft_sim.generation.presets import preset_scenario_paths
 
@@ -242,12 +236,7 @@ def _run(args: argparse.Namespace) -> int:
     scenarios = [load_scenario(p) for p in paths]
     for scenario in scenarios:
         overrides.apply(scenario)  # fails here, before the output is touched
-    assets_dir = _assets_dir(args)
-    if assets_dir is not None and not assets_dir.is_dir():
-        raise ConfigError(
-            f"--assets {str(assets_dir)!r} is not a folder; give a folder of YCB objects "
-            "(<name>/google_16k/textured.obj) or leave it out"
-        )
+    assets_dir = assets_dir_from_args(args)
     if args.overwrite and args.resume:
         raise ConfigError("--overwrite and --resume contradict each other; pick one")
     shard = shard_from_args(args)

@@ -16,6 +16,7 @@ import sys
 import time
 from pathlib import Path
 
+from roft_sim.cli.assets import assets_dir_from_args
 from roft_sim.cli.output_dirs import prepare_output_dir
 from roft_sim.errors import ConfigError, DatasetFormatError
 
@@ -110,9 +111,7 @@ def _generate(args: argparse.Namespace, out: Path, progress: bool) -> tuple[Path
     scenarios = [load_scenario(p) for p in preset_scenario_paths("fast-ycb")]
     for scenario in scenarios:
         overrides.apply(scenario)
-    assets = args.assets
-    if assets is None and os.environ.get("ROFT_SIM_ASSETS"):
-        assets = Path(os.environ["ROFT_SIM_ASSETS"]).expanduser()
+    assets = assets_dir_from_args(args)
     backend = require_gl_backend(os.environ)
     dataset = out / "dataset"
     t0 = time.perf_counter()
@@ -168,6 +167,7 @@ def _run(args: argparse.Namespace) -> int:
     else:
         from roft_sim.generation import ScenarioOverrides, parse_resolution
 
+        assets_dir_from_args(args)
         ScenarioOverrides(
             frames=args.frames,
             resolution=None if args.resolution is None else parse_resolution(args.resolution),

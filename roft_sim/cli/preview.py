@@ -9,6 +9,7 @@ import logging
 import os
 from pathlib import Path
 
+from roft_sim.cli.assets import assets_dir_from_args
 from roft_sim.errors import ConfigError
 
 __all__ = ["register"]
@@ -67,13 +68,12 @@ def _run(args: argparse.Namespace) -> int:
     from roft_sim.scenario import load_scenario
 
     scenario = load_scenario(args.scenario)
+    assets_dir = assets_dir_from_args(args)
     backend = require_gl_backend(os.environ)  # before anything imports mujoco
     from roft_sim.assets import default_cache_dir
     from roft_sim.render.preview import write_preview
     from roft_sim.render.scene_renderer import SceneRenderer
 
-    assets_env = os.environ.get("ROFT_SIM_ASSETS")
-    assets_dir = args.assets or (Path(assets_env).expanduser() if assets_env else None)
     cache_dir = args.cache or default_cache_dir(os.environ)
     scale = args.scale
     if scale is None:

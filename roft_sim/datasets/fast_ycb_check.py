@@ -35,6 +35,8 @@ import cv2
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from roft_sim.errors import ConfigError
+
 __all__ = [
     "check_fast_ycb_sequence",
     "run_fast_ycb_check",
@@ -79,8 +81,13 @@ def run_fast_ycb_check(path: str | Path, *, max_flow_frames: int = 20) -> FastYc
 
     Args:
         path: the sequence folder.
-        max_flow_frames: frames (evenly spread) used per flow set for the direction check.
+        max_flow_frames: frames (evenly spread) used per flow set for the direction check, >= 1.
+
+    Raises:
+        ConfigError: ``max_flow_frames`` below 1 (it would skip the flow check silently).
     """
+    if max_flow_frames < 1:
+        raise ConfigError(f"max_flow_frames must be >= 1, got {max_flow_frames}")
     return _Checker(Path(path), max_flow_frames).run()
 
 

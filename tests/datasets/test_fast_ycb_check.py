@@ -13,6 +13,7 @@ from dataset_fixtures import plate_sequence
 from roft_sim.cli import main
 from roft_sim.datasets import check_fast_ycb_sequence, write_sequence
 from roft_sim.datasets.fast_ycb_check import run_fast_ycb_check
+from roft_sim.errors import ConfigError
 from roft_sim.geometry.se3 import v_o_from_v_obj
 
 
@@ -284,3 +285,8 @@ def test_cli_check_needs_at_least_one_flow_frame(good_dataset: Path, frames: str
     """Review regression: --max-flow-frames -1 silently skipped the flow-direction check."""
     assert main(["dataset", "check", str(good_dataset), "--max-flow-frames", frames]) == 2
     assert "--max-flow-frames must be at least 1" in capsys.readouterr().err
+
+
+def test_library_check_needs_at_least_one_flow_frame(good_dataset: Path):
+    with pytest.raises(ConfigError, match="max_flow_frames must be >= 1, got 0"):
+        run_fast_ycb_check(good_dataset, max_flow_frames=0)

@@ -156,6 +156,7 @@ def test_paper_cli_checks_its_arguments_before_touching_the_output(tmp_path, cap
     base = ["paper", "--out", str(out), "--overwrite", "--no-plugins"]
     for bad, message in (
         (["--frames", "0"], "--frames must be >= 1"),
+        (["--assets", str(tmp_path / "nowhere")], "is not a folder"),
         (["--resolution", "abc"], "expected WIDTHxHEIGHT"),
         (["--flow", "raft"], "unknown flow source"),
         (["--reuse", str(dataset), "--seed", "-1", "--rows", "detector"], "seed must be"),

@@ -80,6 +80,9 @@ def test_cli_usage_errors_exit_2(tmp_path, capsys):
     assert "does not exist" in capsys.readouterr().err
     assert main(["preview", str(tmp_path / "missing.toml"), "--out", str(tmp_path / "a.mp4")]) == 2
     assert "does not exist" in capsys.readouterr().err
+    argv = ["preview", str(scenario), "--out", str(tmp_path / "a.mp4")]
+    assert main([*argv, "--assets", str(tmp_path / "nowhere")]) == 2  # was ignored
+    assert "--assets" in capsys.readouterr().err
 
 
 @pytest.mark.render
