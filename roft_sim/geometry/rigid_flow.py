@@ -81,6 +81,9 @@ def rigid_flow(
             f"depth {depth.shape} and body_index {body.shape} must match the camera "
             f"{intrinsics.shape}"
         )
+    depth_to = None if depth_to_m is None else np.asarray(depth_to_m, dtype=np.float64)
+    if depth_to is not None and depth_to.shape != intrinsics.shape:
+        raise ValueError(f"depth_to_m {depth_to.shape} must match the camera {intrinsics.shape}")
     if M.ndim != 3 or M.shape[1:] != (4, 4):
         raise ValueError(f"motions must have shape (B, 4, 4), got {M.shape}")
     if body.max(initial=-1) >= M.shape[0]:
@@ -116,8 +119,7 @@ def rigid_flow(
         & (v_to >= -0.5)
         & (v_to < intrinsics.height_px - 0.5)
     )
-    if depth_to_m is not None:
-        depth_to = np.asarray(depth_to_m, dtype=np.float64)
+    if depth_to is not None:
         tu = np.where(inside, np.rint(np.where(inside, u_to, 0.0)), 0).astype(np.int64)
         tv = np.where(inside, np.rint(np.where(inside, v_to, 0.0)), 0).astype(np.int64)
         d_seen = depth_to[tv, tu]

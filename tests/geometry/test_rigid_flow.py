@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
+from scipy.ndimage import map_coordinates
 
 from roft_sim.geometry import CameraIntrinsics, matrix_from_rotvec, transform_from_rt
 from roft_sim.geometry.rigid_flow import object_and_static_motions, rigid_flow
@@ -64,27 +66,39 @@ def test_occlusion_by_nearer_surface_is_invalid():
 
 
 def test_forward_backward_consistency():
-    depth = _plane_depth(0.9)
+    """Forward flow on a plane, then rigid_flow's BACKWARD flow (inverse motion, depth of the moved
+    plane computed analytically) sampled where each pixel lands, brings it back."""
+    z0 = 0.9
+    depth = _plane_depth(z0)
     M = transform_from_rt(matrix_from_rotvec([0.01, 0.03, -0.02]), [0.02, -0.01, 0.03])
-    fwd, valid = rigid_flow(CAM, depth, np.zeros(CAM.shape, int), M[None])
+    body = np.zeros(CAM.shape, int)
+    fwd, valid = rigid_flow(CAM, depth, body, M[None])
+    # The plane z = z0 after the motion: normal n' = R e_z, offset d' = z0 + n' . t; a pixel's
+    # ray r = K^-1 [u, v, 1] meets it at z-depth d' / (n' . r).
+    n = M[:3, :3] @ [0.0, 0.0, 1.0]
+    d = z0 + n @ M[:3, 3]
+    v, u = np.mgrid[0 : CAM.height_px, 0 : CAM.width_px].astype(np.float64)
+    rays = np.stack([(u - CAM.cx_px) / CAM.fx_px, (v - CAM.cy_px) / CAM.fy_px, np.ones_like(u)])
+    depth_later = (d / np.einsum("i,ihw->hw", n, rays)).astype(np.float32)
+    bwd, valid_bwd = rigid_flow(CAM, depth_later, body, np.linalg.inv(M)[None])
     rows, cols = np.nonzero(valid)
-    X = np.stack(
-        [
-            (cols - CAM.cx_px) / CAM.fx_px * 0.9,
-            (rows - CAM.cy_px) / CAM.fy_px * 0.9,
-            np.full(rows.shape, 0.9),
-        ],
-        1,
-    )
-    X_to = X @ M[:3, :3].T + M[:3, 3]
-    Minv = np.linalg.inv(M)
-    back = X_to @ Minv[:3, :3].T + Minv[:3, 3]
-    uv_back = np.stack(
-        [
-            CAM.fx_px * back[:, 0] / back[:, 2] + CAM.cx_px,
-            CAM.fy_px * back[:, 1] / back[:, 2] + CAM.cy_px,
-        ],
-        1,
-    )
-    np.testing.assert_allclose(uv_back, np.stack([cols, rows], 1), atol=1e-9)
-    assert np.abs(fwd[valid]).max() > 1.0
+    tu, tv = cols + fwd[rows, cols, 0], rows + fwd[rows, cols, 1]
+    keep = (tu >= 0) & (tu <= CAM.width_px - 1) & (tv >= 0) & (tv <= CAM.height_px - 1)
+    rows, cols, tu, tv = rows[keep], cols[keep], tu[keep], tv[keep]
+    # bilinear; the flow of a plane is smooth, so interpolation adds little
+    back = np.stack([map_coordinates(bwd[..., i], [tv, tu], order=1) for i in range(2)], -1)
+    corners = map_coordinates(valid_bwd.astype(float), [tv, tu], order=1) > 1 - 1e-9
+    rows, cols, back = rows[corners], cols[corners], back[corners]
+    err = np.linalg.norm(fwd[rows, cols] + back, axis=-1)
+    assert len(err) > 0.8 * valid.size and np.abs(fwd[valid]).max() > 1.0
+    assert err.max() < 1e-3, f"forward-backward error {err.max():.2e} px"
+
+
+def test_later_depth_of_another_shape_is_a_clear_error():
+    depth = _plane_depth(1.0)
+    M = transform_from_rt(np.eye(3), [0.01, 0.0, 0.0])
+    for shape in ((60, 80), (240, 320)):  # smaller: index error; larger: silently wrong pixels
+        with pytest.raises(ValueError, match=r"depth_to_m \(\d+, \d+\) must match the camera"):
+            rigid_flow(
+                CAM, depth, np.zeros(CAM.shape, int), M[None], depth_to_m=np.ones(shape, np.float32)
+            )
