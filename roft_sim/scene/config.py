@@ -44,6 +44,11 @@ def _check_texture_px(owner: str, value: int) -> None:
         raise ConfigError(f"{owner}.texture_px must be 16 to 4096, got {value}")
 
 
+def _check_choice(name: str, value: object, choices: tuple[str, ...]) -> None:
+    if value not in choices:
+        raise ConfigError(f"{name} must be one of {', '.join(map(repr, choices))}, got {value!r}")
+
+
 def _check_unit_interval(owner: str, **values: float) -> None:
     for name, value in values.items():
         if not (np.isfinite(value) and 0.0 <= value <= 1.0):
@@ -122,6 +127,7 @@ class LightConfig:
     """Casts shadows when ``[render] shadows = true``."""
 
     def __post_init__(self) -> None:
+        _check_choice("light kind", self.kind, ("directional", "spot"))
         d = np.asarray(self.direction, dtype=np.float64)
         if not (np.isfinite(d).all() and np.linalg.norm(d) > 1e-9):
             raise ConfigError(f"light direction must be a non-zero vector, got {self.direction}")
@@ -173,6 +179,8 @@ class HandConfig:
     """Skin colour, RGB in [0, 1] (the hand is plain, untextured)."""
 
     def __post_init__(self) -> None:
+        _check_choice("hand.palm_side", self.palm_side, ("+x", "-x", "+y", "-y", "+z", "-z"))
+        _check_choice("hand.wrap_axis", self.wrap_axis, ("x", "y", "z"))
         _check_positive(
             "hand",
             palm_radius_m=self.palm_radius_m,

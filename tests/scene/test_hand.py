@@ -51,3 +51,16 @@ def test_bad_hand_configs_are_errors():
         HandConfig(finger_count=5)
     with pytest.raises(ConfigError, match="finger_radius_m must be a positive number"):
         HandConfig(finger_radius_m=0.0)
+
+
+def test_hand_and_light_configs_built_in_code_check_their_choices():
+    """The TOML loader checks Literal fields; configs built in Python must too (a bad palm side
+    was a KeyError when the scene was built; an unknown light kind silently became a spot)."""
+    from roft_sim.scene.config import LightConfig
+
+    with pytest.raises(ConfigError, match=r"hand.palm_side must be one of .*got '\+w'"):
+        HandConfig(palm_side="+w")  # type: ignore[arg-type]
+    with pytest.raises(ConfigError, match="hand.wrap_axis must be one of .*got 'q'"):
+        HandConfig(wrap_axis="q")  # type: ignore[arg-type]
+    with pytest.raises(ConfigError, match="light kind must be one of .*got 'point'"):
+        LightConfig(kind="point")  # type: ignore[arg-type]
