@@ -5,8 +5,9 @@ spans ``u`` in ``[-0.5, W - 0.5]`` (docs/conventions.md). MuJoCo cameras look al
 with y up and x right, so ``R_cv_mj = diag(1, -1, -1)`` (a half turn about x).
 
 MuJoCo 3.2+ (and 4.0) cameras take pinhole intrinsics as ``resolution``, ``sensor_size`` [m],
-``focal_pixel`` and ``principal_pixel``. Measured on MuJoCo 4.0 (``tests/render/test_camera.py``
-checks it against the compiled frustum), the frustum at the near plane ``n`` is
+``focal_pixel`` and ``principal_pixel``. Measured on MuJoCo 4.0
+(``tests/render/test_mujoco_camera.py`` checks it against the compiled frustum), the frustum at
+the near plane ``n`` is
 
     x in n / fx * [p_x - W/2, p_x + W/2],   y in n / fy * [-H/2 - p_y, H/2 - p_y]   (MuJoCo frame)
 
