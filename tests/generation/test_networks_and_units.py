@@ -269,3 +269,34 @@ def test_pose_estimator_frame_k_depends_only_on_frame_k_pose_and_visibility():
         assert one.valid[k] == full.valid[k]
         assert one.outlier_kind[k] == full.outlier_kind[k]
         np.testing.assert_array_equal(one.T_cam_obj[k], full.T_cam_obj[k])
+
+
+# ------------------------------------------------- flow-set noise under nvof-like
+def test_nvof_like_gt_noise_is_drawn_in_full_resolution_pixels_then_block_averaged():
+    """``nvof-like:gt+noise``: the ``noise`` lengths are full-resolution pixels (the noise is
+    drawn per pixel of the exact flow), and the 4x4 block mean then averages it: white noise of
+    ``sigma_px`` leaves ``sigma_px / 4`` per block, not ``sigma_px`` (docs/generate.md)."""
+    from roft_sim.geometry import CameraIntrinsics
+    from roft_sim.records import FlowField
+    from roft_sim.sensors.flow_sources import FlowNoiseConfig
+
+    sequence_generator = pytest.importorskip("roft_sim.generation.sequence_generator")
+
+    cam = CameraIntrinsics(
+        fx_px=100.0, fy_px=100.0, cx_px=63.5, cy_px=63.5, width_px=128, height_px=128
+    )
+    noise = FlowNoiseConfig(sigma_px=0.4, relative_sigma=0.0, correlation_px=0.0,
+                            outlier_fraction=0.0)  # fmt: skip
+    config = FlowSetConfig(set_name="n", source="nvof-like:gt+noise", noise=noise)
+    source = sequence_generator._flow_source(config.source_spec, config, seed=3)
+
+    class Pair:  # the exact flow of a frame pair, as the generator memoises it
+        name, intrinsics = "pair", cam
+        memo = {"gt": FlowField(flow_px=np.zeros((128, 128, 2), np.float32), from_k=0, to_k=1)}
+
+        def __len__(self):
+            return 2
+
+    flow = source.flow(Pair(), 0, 1)
+    assert flow.grid_px == 4 and flow.flow_px.shape == (32, 32, 2)
+    assert flow.flow_px.std() == pytest.approx(0.4 / 4, rel=0.1)
