@@ -148,6 +148,13 @@ class Scenario:
             )
         if self.frames is not None and self.frames < 1:
             raise ConfigError(f"frames must be >= 1, got {self.frames}")
+        wall = self.scene.background
+        if wall.enabled and wall.distance_m >= self.render.zfar_m:
+            raise ConfigError(
+                f"scene.background.distance_m = {wall.distance_m} m lies beyond render.zfar_m = "
+                f"{self.render.zfar_m} m: the wall would be clipped away (depth 0, no flow); "
+                "raise zfar_m, bring the wall closer, or set scene.background.enabled = false"
+            )
         if self.duration_s is not None:
             if not (np.isfinite(self.duration_s) and self.duration_s > 0):
                 raise ConfigError(f"duration_s must be a positive number, got {self.duration_s}")

@@ -137,6 +137,10 @@ subpixel_px = 0.1
         ),
         (("frames = 10", "frames = 10\nseed = -1"), r"seed must be >= 0"),
         (
+            ("[trajectory]", "[render]\nzfar_m = 1.0\n[trajectory]"),
+            r"background.distance_m = 1.6 m lies beyond render.zfar_m = 1.0 m",
+        ),
+        (
             ("[trajectory]", "[camera.motion]\nfrequency_hz = 1.0\n[trajectory]"),
             r"camera.motion: missing key 'kind'; add kind = one of .*'sway'",
         ),

@@ -333,6 +333,10 @@ def _atlas_texture(
     px_per_mm = max(shape) / max(atlas.atlas_size_m) / 1000.0
     params = {
         "version": TEXTURE_GENERATOR_VERSION,
+        # numpy's Generator and OpenCV's drawing are not bit-stable across versions: a cache
+        # written by another environment must not stand in for this one's texture
+        "numpy": np.__version__,
+        "opencv": cv2.__version__,
         "label": label,
         "palette": [list(c) for c in palette_rgb],
         "weights": list(weights),

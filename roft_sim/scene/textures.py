@@ -3,7 +3,9 @@
 Optical flow (ground truth checks, DIS, ROFT's flow) needs texture everywhere and at every scale,
 so each style mixes band-limited noise at several scales, structure (planks, stones, threads,
 shapes) and a fine grain. Noise is made periodic by filtering white noise in the Fourier domain
-and shapes are drawn at their wrapped positions too, so a texture repeats without seams.
+and shapes are drawn at their wrapped positions too, so a texture repeats without seams (one known
+exception, kept so that rendered scenes stay as measured: ``posters`` draws its filled polygons
+afresh at each wrapped copy, so a few rows show a seam; see docs/scenarios.md).
 Everything is a pure function of ``rng``.
 """
 

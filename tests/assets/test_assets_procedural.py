@@ -227,3 +227,20 @@ def test_arrays_are_read_only():
         assets.mesh.vertices_m[0, 0] = 1.0
     with pytest.raises(ValueError, match="read-only"):
         assets.model.model_points_m[0, 0] = 1.0
+
+
+def test_texture_cache_is_keyed_by_the_numpy_and_opencv_versions(tmp_path, monkeypatch):
+    """Review regression: neither library is bit-stable across versions, so a texture cached by
+    another environment must not be reused as this one's."""
+    from roft_sim.assets.objects import _clear_caches
+
+    _clear_caches()
+    load_object("009_gelatin_box", cache_dir=tmp_path, max_texture_px=SMALL_TEXTURE_PX)
+    monkeypatch.setattr(np, "__version__", "0.0.0-other")
+    _clear_caches()
+    load_object("009_gelatin_box", cache_dir=tmp_path, max_texture_px=SMALL_TEXTURE_PX)
+    monkeypatch.setattr(cv2, "__version__", "0.0.0-other")
+    _clear_caches()
+    load_object("009_gelatin_box", cache_dir=tmp_path, max_texture_px=SMALL_TEXTURE_PX)
+    _clear_caches()
+    assert len(list((tmp_path / "procedural").glob("009_gelatin_box-v*.png"))) == 3
