@@ -131,6 +131,9 @@ class SequenceJob:
     """The open (created or resumed) writer; picklable, shared by the workers."""
     missing_frames: tuple[int, ...]
     """Frames the writer did not have when the run started."""
+    object_source: str = ""
+    """Where the driver found the object (``ycb`` real mesh or ``procedural`` stand-in; what
+    the metadata and the written model say); every worker must render the same."""
 
     @property
     def n_frames(self) -> int:
@@ -284,6 +287,7 @@ def prepare_jobs(
                 sequence_name=name,
                 writer=writer,
                 missing_frames=tuple(missing),
+                object_source=str(assets.source),
             )
         )
     return jobs

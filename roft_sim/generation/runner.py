@@ -15,6 +15,7 @@ nothing (docs/scaleout.md).
 from __future__ import annotations
 
 import logging
+import socket
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -197,11 +198,20 @@ class _WorkerState:
         if self._current is not None and self._current[0] == sequence:
             return self._current[1]
         self.close()
+        job = self.jobs[sequence]
         gen = SequenceGenerator(
-            self.jobs[sequence].scenario,
-            assets_dir=self.options.assets_dir,
-            cache_dir=self.options.cache_dir,
+            job.scenario, assets_dir=self.options.assets_dir, cache_dir=self.options.cache_dir
         )
+        source = str(gen.renderer.object_assets.source)
+        if job.object_source and source != job.object_source:
+            gen.close()
+            raise ConfigError(
+                f"{job.sequence_name}: on worker host {socket.gethostname()!r} the object "
+                f"{job.scenario.object.name_or_path} loads as {source!r}, but the driver found "
+                f"{job.object_source!r} (what the dataset's metadata and model say). Give every "
+                "node the same meshes (--assets on shared storage, or the same "
+                "`roft-sim assets install` cache) and run again with --resume"
+            )
         self._current = (sequence, gen)
         return gen
 

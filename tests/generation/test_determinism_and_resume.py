@@ -213,3 +213,26 @@ def test_a_killed_cli_run_with_two_workers_resumes_to_the_same_bytes(tmp_path, s
     assert 4 <= written < 16
     assert main(["generate", str(_ci_file()), "--out", str(out), "--resume", *common]) == 0
     assert tree_hashes(out) == tree_hashes(reference)
+
+
+def test_a_worker_that_loads_another_object_source_is_refused(tmp_path):
+    """Review regression: a Ray node without the real mesh silently rendered the procedural
+    stand-in into a dataset whose metadata and model say the real YCB mesh."""
+    from roft_sim.generation.jobs import SequenceJob
+    from roft_sim.generation.runner import GenerationOptions, _WorkerState
+
+    scenario = tiny_scenario(frames=2)
+    job = SequenceJob(
+        index=0, scenario=scenario, sequence_name="seq", writer=None, missing_frames=(0, 1),
+        object_source="ycb",  # what the driver found; this worker has no real mesh
+    )  # fmt: skip
+    state = _WorkerState([job], GenerationOptions(progress=False, cache_dir=tmp_path))
+    with pytest.raises(ConfigError, match=r"loads as 'procedural', but the driver found 'ycb'"):
+        state.generator(0)
+    same = SequenceJob(
+        index=0, scenario=scenario, sequence_name="seq", writer=None, missing_frames=(0, 1),
+        object_source="procedural",
+    )  # fmt: skip
+    state = _WorkerState([same], GenerationOptions(progress=False, cache_dir=tmp_path))
+    assert state.generator(0) is state.generator(0)
+    state.close()
