@@ -191,9 +191,10 @@ def permute_pose_arrivals(
 ) -> list[Observation]:
     """The same pose detections in another arrival order, within the buffer horizon.
 
-    Delivery j (in delivery order) takes the arrival frame of delivery ``order[j]``, clipped to
-    ``[capture_k, capture_k + max_delay_frames]`` (and to the observed frames), so every pose
-    stays usable; a delivery whose window is empty (clock skew) keeps its arrival frame.
+    Delivery j (in delivery order) takes the arrival slot of delivery ``order[j]``: its arrival
+    frame, clipped to ``[capture_k, capture_k + max_delay_frames]`` (and to the observed frames),
+    so every pose stays usable, and its place among the deliveries of that frame; a delivery
+    whose window is empty (clock skew) keeps its arrival frame.
 
     Args:
         observations: frames 0..N-1 in order.
@@ -213,7 +214,8 @@ def permute_pose_arrivals(
     arrivals = [k for k, _ in deliveries]
     last = len(observations) - 1
     moved: list[list[PoseDetection]] = [[] for _ in observations]
-    for j, (k, i) in enumerate(deliveries):
+    for j in sorted(range(len(deliveries)), key=lambda j: order[j]):  # in the order of the slots
+        k, i = deliveries[j]
         det = observations[k].poses[i]
         lo = max(det.capture_k, 0)
         hi = last if max_delay_frames is None else min(det.capture_k + max_delay_frames, last)

@@ -125,6 +125,17 @@ def test_permute_pose_arrivals_swaps_and_clips_to_the_horizon():
         permute_pose_arrivals(obs, [0, 0, 1])
 
 
+def test_permute_pose_arrivals_reorders_deliveries_within_a_frame():
+    """Regression: two poses delivered at one frame, swapped, arrive in the swapped order (the
+    within-frame order used to stay the original one, so such permutations tested nothing)."""
+    obs = _observations(8, [(1, 4, 0), (2, 4, 1), (3, 6, 2)])
+    assert _arrivals(permute_pose_arrivals(obs, [1, 0, 2])) == [(2, 4, 1), (1, 4, 0), (3, 6, 2)]
+    assert _arrivals(permute_pose_arrivals(obs, [0, 1, 2])) == _arrivals(obs)
+    # delivery 0 takes the slot of delivery 2 (frame 6), delivery 2 the slot of delivery 0 (frame
+    # 4, before delivery 1's slot); delivery 1 keeps its slot
+    assert _arrivals(permute_pose_arrivals(obs, [2, 1, 0])) == [(3, 4, 2), (2, 4, 1), (1, 6, 0)]
+
+
 def test_tracker_for_injects_the_analytic_renderer_and_finds_names(seq):
     roft = tracker_for("roft", seq)
     assert isinstance(roft, RoftTracker)
