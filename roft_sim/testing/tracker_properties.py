@@ -290,11 +290,20 @@ def check_horizon_rule(
         counter: a diagnostics key that must grow by one at the last frame (e.g. ROFT's
             ``total_poses_dropped_too_old``); None = not checked.
         initial: passed to ``reset`` in both runs.
+
+    Raises:
+        ValueError: the pose is not older than the horizon, arrives outside the observed
+            frames, or its ``detection_id`` is already used.
     """
     if late.arrival_k - late.capture_k <= horizon_frames:
         raise ValueError(
             f"the late pose arrives {late.arrival_k - late.capture_k} frames after its capture; "
             f"it must be more than horizon_frames = {horizon_frames}"
+        )
+    if not 0 <= late.arrival_k < len(observations):
+        raise ValueError(
+            f"the late pose arrives at frame {late.arrival_k}, outside the {len(observations)} "
+            "observed frames"
         )
     used = {d.detection_id for o in observations for d in o.poses}
     if late.detection_id in used:

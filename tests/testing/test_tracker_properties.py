@@ -154,6 +154,11 @@ def test_horizon_rule_passes_a_dropping_tracker_and_catches_one_that_keeps_old_p
     with pytest.raises(ValueError, match="detection_id 0 is already used"):
         used = PoseDetection(capture_k=0, arrival_k=9, T_cam_obj=_pose(0), detection_id=0)
         check_horizon_rule(Horizon, base, used, horizon_frames=5)
+    for arrival in (12, -1):  # regression: an IndexError, or the last frame silently used
+        outside = PoseDetection(capture_k=-9, arrival_k=arrival, T_cam_obj=_pose(0),
+                                detection_id=98)  # fmt: skip
+        with pytest.raises(ValueError, match=f"arrives at frame {arrival}, outside the 12"):
+            check_horizon_rule(Horizon, base, outside, horizon_frames=5)
 
 
 def test_determinism_is_bitwise():
