@@ -209,6 +209,24 @@ def _check_finished_matches(path: Path, metadata: Mapping[str, Any]) -> None:
         )
 
 
+def _warn_about_grid_width(scenario: Scenario) -> None:
+    """Warns when an ``nvof-like`` set's 4x4 grid does not divide the image width: our readers
+    know the grid is 4 px, but the reference ROFT derives it as ``image_width / flow_cols`` in
+    integer arithmetic (roft_reference.md section 8.4) and would sample the flow wrongly."""
+    width = scenario.intrinsics.width_px
+    grid_sets = [
+        f.set_name for f in scenario.networks.flow_sets if f.source.startswith("nvof-like")
+    ]
+    if grid_sets and width % 4:
+        cols = -(-width // 4)
+        _log.warning(
+            "%s: flow sets %s have %d grid columns for a width of %d px; the reference ROFT reads "
+            "their grid as %d // %d = %d px instead of 4. Use a width that is a multiple of 4 "
+            "(e.g. %d) if the reference code will read this dataset",
+            scenario.name, grid_sets, cols, width, width, cols, width // cols, width - width % 4,
+        )  # fmt: skip
+
+
 def prepare_jobs(
     scenarios: Sequence[Scenario],
     out_dir: Path,
@@ -249,6 +267,7 @@ def prepare_jobs(
             scenario.object.name_or_path, assets_dir=assets_dir, cache_dir=cache_dir
         )
         _check_trajectory_length(scenario, assets.mesh)
+        _warn_about_grid_width(scenario)
         loaded.append(assets)
     if prepare_output is not None:
         prepare_output(out_dir)
