@@ -462,17 +462,28 @@ def check_recovery(
 
     The result's ``worst`` holds ``recovery_frames``: frames after ``burst_end_k`` from which the
     error stayed within bounds to the end (``inf`` if it never did).
+
+    Raises:
+        ValueError: ``burst_end_k`` outside the frames, ``within_frames < 0``, or no frame left
+            to check (``burst_end_k + within_frames`` at or past the last estimate).
     """
     n = len(estimates)
     if not 0 <= burst_end_k < n:
         raise ValueError(f"burst_end_k = {burst_end_k} is outside the {n} frames")
+    if within_frames < 0:
+        raise ValueError(f"within_frames must be >= 0, got {within_frames}")
+    if burst_end_k + within_frames >= n:
+        raise ValueError(
+            f"recovery is checked from frame {burst_end_k + within_frames} on: no frame left of "
+            f"the {n} frames; use a longer run or a smaller within_frames"
+        )
     pos, rot = pose_errors(estimates, truth)
     inside = (pos <= bound_m) & (rot <= bound_rad)  # NaN (invalid) compares False
     tail = inside[burst_end_k:]
     outside_idx = np.flatnonzero(~tail)
     recovery = 0 if outside_idx.size == 0 else int(outside_idx[-1]) + 1
     recovered = recovery < tail.size
-    start = min(burst_end_k + within_frames, n)
+    start = burst_end_k + within_frames
     bounded = check_error_bounded(
         estimates, truth, bound_m=bound_m, bound_rad=bound_rad, frames=np.arange(start, n)
     )

@@ -203,6 +203,16 @@ def test_error_bounded_and_recovery_by_hand():
     late = check_recovery(estimates, truth, burst_end_k=4, within_frames=4, bound_m=0.1,
                           bound_rad=0.1)  # fmt: skip
     assert not late.passed and "frame 8: position error 0.2000 m > 0.1000 m" in late.violations
+    # regression: a window past the last frame checked nothing and passed, even a run that never
+    # recovers (recovery_frames inf)
+    never = _with_errors([0.0, 0.3, 0.3, 0.3, 0.3, 0.3])
+    for within in (5, 9):
+        with pytest.raises(ValueError, match=f"from frame {1 + within} on: no frame left"):
+            check_recovery(never, _truth(6), burst_end_k=1, within_frames=within, bound_m=0.1,
+                           bound_rad=0.1)  # fmt: skip
+    with pytest.raises(ValueError, match="within_frames must be >= 0, got -1"):
+        check_recovery(estimates, truth, burst_end_k=4, within_frames=-1, bound_m=0.1,
+                       bound_rad=0.1)  # fmt: skip
     invalid = _with_errors([0.0, np.nan, 0.0])
     loose = {"bound_m": 1.0, "bound_rad": 1.0}
     assert not check_error_bounded(invalid, _truth(3), **loose).passed
