@@ -270,8 +270,9 @@ def check_consistency(
         The :class:`ConsistencyResult` (``result.passed``, ``result.summary()``).
 
     Raises:
-        ValueError: runs of different lengths, a tested estimate invalid or without covariance
-            (naming the run and frame), or a covariance that is not positive definite.
+        ValueError: runs of different lengths, frames outside the runs, a tested estimate
+            invalid or without covariance (naming the run and frame), or a covariance that is not
+            positive definite.
     """
     if len(runs) == 0:
         raise ValueError("need at least one run")
@@ -290,6 +291,8 @@ def check_consistency(
         selected = np.flatnonzero(f) if f.dtype == np.bool_ else f.astype(np.int64)
     if selected.size == 0:
         raise ValueError("no frames selected")
+    if selected.min() < 0 or selected.max() >= n_frames:
+        raise ValueError(f"frames must lie in [0, {n_frames}), got {selected.tolist()}")
     idx, names = component_indices(components)
     errors = np.empty((len(runs), selected.size, idx.size))
     covs = np.empty((len(runs), selected.size, idx.size, idx.size))

@@ -122,6 +122,9 @@ def test_input_errors_name_the_run_and_frame():
         check_consistency([no_cov], truth)
     with pytest.raises(ValueError, match="every run must have 5 estimates"):
         check_consistency([run, run[:4]], truth)
+    for outside in ([5], [-1]):  # regression: an IndexError, or frame 4 tested as "frame -1"
+        with pytest.raises(ValueError, match=r"frames must lie in \[0, 5\), got \["):
+            check_consistency([run], truth, frames=outside)
     with pytest.raises(ValueError, match="unknown component group 'orientation'"):
         check_consistency([run], truth, components="orientation")
     e, P6 = _gaussian_runs(2, 3, 6)
