@@ -12,9 +12,13 @@ their covariances.
 Acceptance (``sided="two-sided"``, the default):
 
 1. the average over all runs and steps lies inside the per-step interval
-   ``[chi2_{Rn}((1-c)/2), chi2_{Rn}((1+c)/2)] / R``. The per-step interval is used, not the much
-   narrower one for ``R K`` independent samples, because a filter's errors are correlated in time:
-   the mean of K correlated per-step averages varies at most as much as one of them;
+   ``[chi2_{Rn}((1-c)/2), chi2_{Rn}((1+c)/2)] / R`` for NEES. The per-step interval is used, not
+   the much narrower one for ``R K`` independent samples, because a filter's errors are
+   correlated in time: the mean of K correlated per-step averages varies at most as much as one
+   of them. For NIS (``independent_steps``, the default for ``statistic="NIS"``) the narrower
+   interval ``[chi2_{RKn}((1-c)/2), chi2_{RKn}((1+c)/2)] / (R K)`` is used: a consistent filter's
+   innovations are white, so the time average is a mean of ``R K`` independent values
+   (``metrics_faults_flow.md`` 4.3);
 2. at least ``min_fraction_inside`` of the per-step averages lie inside the interval (about
    ``c`` of them for a consistent filter; default ``c - 0.1``).
 
@@ -83,6 +87,11 @@ class ConsistencyResult:
     """Upper bound of the per-step average."""
     average: float
     """Average over every run and step (ANEES / ANIS)."""
+    average_lower: float
+    """Lower bound applied to ``average``: ``lower`` (NEES), or the bound for ``R K``
+    independent values with ``independent_steps`` (NIS)."""
+    average_upper: float
+    """Upper bound applied to ``average``."""
     fraction_inside: float
     """Fraction of steps whose average lies in ``[lower, upper]``."""
     fraction_above: float
@@ -100,10 +109,10 @@ class ConsistencyResult:
     def passed(self) -> bool:
         """The verdict of the acceptance rule of the module docstring."""
         if self.sided == "upper":
-            return self.average <= self.upper and 1.0 - self.fraction_above >= (
+            return self.average <= self.average_upper and 1.0 - self.fraction_above >= (
                 self.min_fraction_inside
             )
-        return self.lower <= self.average <= self.upper and (
+        return self.average_lower <= self.average <= self.average_upper and (
             self.fraction_inside >= self.min_fraction_inside
         )
 
@@ -126,7 +135,8 @@ class ConsistencyResult:
                 f"{self.statistic} test ({kind}, {self.confidence:.0%}): {verdict}",
                 f"  components {', '.join(self.components)} (dof {self.dof}), {self.runs} runs x "
                 f"{len(self.frames)} steps",
-                f"  average {self.statistic} {self.average:.3f}; per-step bounds "
+                f"  average {self.statistic} {self.average:.3f} (bounds "
+                f"[{self.average_lower:.3f}, {self.average_upper:.3f}]); per-step bounds "
                 f"[{self.lower:.3f}, {self.upper:.3f}] (expected value {self.dof})",
                 f"  steps inside {self.fraction_inside:.1%}, above {self.fraction_above:.1%}, "
                 f"below {self.fraction_below:.1%} (need {self.min_fraction_inside:.0%} "
@@ -175,6 +185,7 @@ def check_error_consistency(
     confidence: float = 0.95,
     sided: Sided = "two-sided",
     min_fraction_inside: float | None = None,
+    independent_steps: bool | None = None,
 ) -> ConsistencyResult:
     """Monte-Carlo chi-square test of errors (NEES) or innovations (NIS) and their covariances.
 
@@ -188,6 +199,9 @@ def check_error_consistency(
         sided: ``two-sided`` or ``upper`` (accept conservative filters).
         min_fraction_inside: required fraction of steps inside the bounds (``upper``: not above);
             default ``confidence - 0.1``.
+        independent_steps: test the overall average against the interval for ``R K``
+            independent values (right for white innovations) instead of the per-step one;
+            default: True for ``NIS``, False otherwise (see the module docstring).
 
     Raises:
         ValueError: shapes disagree, values are not finite, a covariance is not symmetric
@@ -222,6 +236,11 @@ def check_error_consistency(
         raise ValueError(f"{len(names)} component names for dimension {n}")
     per_step = values.mean(axis=0)
     lower, upper = chi2_bounds(n, runs, confidence=confidence)
+    if independent_steps is None:
+        independent_steps = statistic == "NIS"
+    average_bounds = (
+        chi2_bounds(n, runs * steps, confidence=confidence) if independent_steps else (lower, upper)
+    )
     return ConsistencyResult(
         statistic=statistic,
         components=tuple(names),
@@ -232,6 +251,8 @@ def check_error_consistency(
         lower=lower,
         upper=upper,
         average=float(values.mean()),
+        average_lower=average_bounds[0],
+        average_upper=average_bounds[1],
         fraction_inside=float(np.mean((per_step >= lower) & (per_step <= upper))),
         fraction_above=float(np.mean(per_step > upper)),
         fraction_below=float(np.mean(per_step < lower)),

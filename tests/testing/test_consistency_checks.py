@@ -56,6 +56,23 @@ def test_a_consistent_filter_passes_and_scaled_covariances_fail():
     assert check_error_consistency(e, P * 4, sided="upper").passed
 
 
+def test_nis_time_average_uses_the_bound_for_independent_steps():
+    """Review regression (metrics_faults_flow.md 4.3): white innovations of one run over K = 300
+    steps are K independent chi2(6) values, so an innovation covariance 1.5 times too small
+    must fail; the per-step interval of one run ([1.24, 14.45]) let it pass."""
+    e, S = _gaussian_runs(1, 300, 6, seed=3)
+    good = check_error_consistency(e, S, statistic="NIS")
+    lo, hi = stats.chi2.ppf([0.025, 0.975], 1800) / 300
+    assert (good.average_lower, good.average_upper) == (pytest.approx(lo), pytest.approx(hi))
+    assert good.passed, good.summary()
+    optimistic = check_error_consistency(e, S / 1.5, statistic="NIS")
+    assert not optimistic.passed and optimistic.average > optimistic.average_upper
+    # the per-step rule alone (NEES's, for time-correlated errors) cannot see it
+    assert check_error_consistency(e, S / 1.5, statistic="NIS", independent_steps=False).passed
+    nees = check_error_consistency(e, S)
+    assert (nees.average_lower, nees.average_upper) == (nees.lower, nees.upper)
+
+
 def test_the_fraction_rule_is_binomially_sensible():
     """Over 200 independent consistent experiments, the default rule (fraction inside >= 85 %
     and average inside the per-step bounds) rejects rarely (measured: 2 of 200)."""
@@ -139,6 +156,6 @@ def test_summary_reads_like_a_report():
     e, P = _gaussian_runs(50, 20, 6, seed=2)
     text = check_error_consistency(e, P / 9).summary()
     assert text.startswith("NEES test (two-sided, 95%): NOT consistent")
-    assert "per-step bounds [5.078, 6.997] (expected value 6)" in text
+    assert "(bounds [5.078, 6.997]); per-step bounds [5.078, 6.997] (expected value 6)" in text
     assert "steps inside 0.0%, above 100.0%" in text
     assert stats.chi2.ppf(0.975, 300) / 50 == pytest.approx(6.997, abs=1e-3)
