@@ -62,9 +62,9 @@ class Tolerance:
     atol_rad: float = 1e-9
     """Rotation, geodesic angle [rad]."""
     atol_mps: float = 1e-9
-    """Object-origin velocity [m/s]."""
+    """Object-origin velocity and the linear part of ``spatial_twist`` [m/s]."""
     atol_radps: float = 1e-9
-    """Angular velocity [rad/s]."""
+    """Angular velocity (also in ``spatial_twist``) [rad/s]."""
     atol_cov: float = 1e-9
     """Covariance entries [SI units squared]; compared when both estimates carry one."""
 
@@ -75,6 +75,8 @@ class Tolerance:
             "rotation_rad": self.atol_rad,
             "v_obj_mps": self.atol_mps,
             "w_radps": self.atol_radps,
+            "spatial_v_mps": self.atol_mps,
+            "spatial_w_radps": self.atol_radps,
             "covariance": self.atol_cov,
         }
 
@@ -129,9 +131,11 @@ def estimate_differences(a: Estimate, b: Estimate) -> dict[str, float]:
 
     Returns:
         ``position_m`` [m], ``rotation_rad`` (geodesic) [rad], ``v_obj_mps`` [m/s], ``w_radps``
-        [rad/s] (Euclidean norms of the differences), ``covariance`` (largest absolute entry
-        difference; ``inf`` when only one of them has a covariance, 0 when neither has) and
-        ``valid`` (1.0 when the validity flags differ, else 0.0).
+        [rad/s] (Euclidean norms of the differences), ``spatial_v_mps`` [m/s] and
+        ``spatial_w_radps`` [rad/s] (the two halves of ``spatial_twist``, ROFT's own velocity
+        output), ``covariance`` (largest absolute entry difference) and ``valid`` (1.0 when the
+        validity flags differ, else 0.0). An optional quantity (covariance, spatial twist) that
+        only one estimate carries differs by ``inf``; one that neither carries by 0.
     """
     Ta = np.asarray(a.T_cam_obj, dtype=np.float64)
     Tb = np.asarray(b.T_cam_obj, dtype=np.float64)
@@ -150,11 +154,23 @@ def estimate_differences(a: Estimate, b: Estimate) -> dict[str, float]:
         d = np.asarray(x, dtype=np.float64) - np.asarray(y, dtype=np.float64)
         return float(np.linalg.norm(d)) if np.isfinite(d).all() else np.inf
 
+    def optional_norm(x: NDArray[np.float64] | None, y: NDArray[np.float64] | None) -> float:
+        if x is None and y is None:
+            return 0.0
+        return np.inf if x is None or y is None else norm(x, y)
+
+    ta, tb = a.spatial_twist, b.spatial_twist
     return {
         "position_m": norm(Ta[:3, 3], Tb[:3, 3]),
         "rotation_rad": rotation,
         "v_obj_mps": norm(a.v_obj_mps, b.v_obj_mps),
         "w_radps": norm(a.w_radps, b.w_radps),
+        "spatial_v_mps": optional_norm(
+            None if ta is None else np.asarray(ta)[:3], None if tb is None else np.asarray(tb)[:3]
+        ),
+        "spatial_w_radps": optional_norm(
+            None if ta is None else np.asarray(ta)[3:], None if tb is None else np.asarray(tb)[3:]
+        ),
         "covariance": cov,
         "valid": float(a.valid != b.valid),
     }

@@ -3,6 +3,7 @@ catches toy trackers built to break it (the checks have teeth)."""
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 
 import numpy as np
@@ -11,6 +12,7 @@ import pytest
 from roft_sim.geometry import matrix_from_rotvec
 from roft_sim.records import Estimate, Observation, PoseDetection, PoseTrack
 from roft_sim.testing import (
+    REPLAY_EXACT,
     PropertyResult,
     check_delay_invariance,
     check_determinism,
@@ -118,6 +120,22 @@ def test_estimate_differences_by_hand():
     assert d["position_m"] == pytest.approx(0.05) and d["rotation_rad"] == pytest.approx(0.1)
     assert d["v_obj_mps"] == pytest.approx(np.sqrt(3)) and d["covariance"] == np.inf
     assert d["valid"] == 0.0 and estimate_differences(a, Estimate.invalid(0))["valid"] == 1.0
+    assert d["spatial_v_mps"] == 0.0 == d["spatial_w_radps"]  # neither carries one
+
+
+def test_invariance_compares_the_spatial_twist_too():
+    """Review regression: a tracker whose spatial twist (ROFT's velocity output, what the
+    reference evaluation scores) depends on delays passed delay invariance unnoticed."""
+    twist = np.array([0.1, 0.0, 0.0, 0.0, 0.2, 0.0])
+    a = Estimate(k=0, T_cam_obj=_pose(0), v_obj_mps=np.zeros(3), w_radps=np.zeros(3),
+                 spatial_twist=twist)  # fmt: skip
+    b = dataclasses.replace(a, spatial_twist=twist + [0.0, 0.03, 0.0, 0.0, 0.0, 0.04])
+    d = estimate_differences(a, b)
+    assert d["spatial_v_mps"] == pytest.approx(0.03) and d["spatial_w_radps"] == pytest.approx(0.04)
+    assert estimate_differences(a, dataclasses.replace(a, spatial_twist=None))["spatial_v_mps"] == (
+        np.inf
+    )
+    assert {"spatial_v_mps", "spatial_w_radps"} <= set(REPLAY_EXACT.limits())
 
 
 def test_delay_invariance_holds_for_newest_capture_and_fails_for_last_arrival():
