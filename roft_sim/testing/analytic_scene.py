@@ -363,8 +363,10 @@ def analytic_box_sequence(
     Returns:
         An :class:`InMemorySequence` with rgb, depth (object and wall), ground-truth poses and
         velocities, ``gt`` visible masks, the ``gt`` flow set (exact rigid flow F_k from k-1 to
-        k, occluded or out-of-image pixels invalid), a ``gt`` detector pose set (the exact poses)
-        and the box's :class:`ObjectModel`.
+        k, occluded or out-of-image pixels invalid; occlusion is the depth test at the nearest
+        pixel of frame k, so it is exact up to one pixel at silhouettes: about 0.4 % of object
+        pixels near an edge carry the other verdict), a ``gt`` detector pose set (the exact
+        poses) and the box's :class:`ObjectModel`.
     """
     if n_frames < 1 or fps < 1:
         raise ConfigError(f"need n_frames >= 1 and fps >= 1, got {n_frames} and {fps}")
