@@ -239,20 +239,19 @@ def check_inputs(sequence: Sequence, options: RunOptions) -> ResolvedInputs:
     Raises:
         ConfigError: the first problem found, saying what is available.
     """
-    from roft_sim.sensors.flow_sources import make_flow_source
+    from roft_sim.sensors.flow_sources import (
+        NvofLikeFlowSource,
+        StoredFlowSource,
+        make_flow_source,
+    )
 
     inputs = resolve_inputs(sequence, options)
     if inputs.flow is not None:
-        make_flow_source(inputs.flow, seed=0)
-        spec = inputs.flow
-        while spec.startswith("nvof-like:"):
-            spec = spec.removeprefix("nvof-like:")
-        kind, _, flow_set = spec.partition(":")
-        if kind == "stored" and flow_set not in sequence.flow_sets():
-            raise ConfigError(
-                f"sequence {sequence.name!r} has no stored flow set {flow_set!r}; it has "
-                f"{list(sequence.flow_sets()) or 'none'}; pick one of those or use 'gt' / 'dis'"
-            )
+        source = make_flow_source(inputs.flow, seed=0)
+        while isinstance(source, NvofLikeFlowSource):
+            source = source.inner
+        if isinstance(source, StoredFlowSource):
+            source.check_sequence(sequence)
     options.faults.check_camera_rate(int(sequence.fps))
     return inputs
 

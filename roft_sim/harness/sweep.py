@@ -281,7 +281,7 @@ def plan_sweep(config: SweepConfig) -> list[SweepCell]:
     paths = find_sequences(config.datasets)
     sequences = [(str(p.resolve()), open_sequence(p)) for p in paths]
     values: list[float | None] = list(config.parameter.values) if config.parameter else [None]
-    probe = RunOptions(
+    shared = RunOptions(  # what every cell shares; each cell sets tracker, faults and seed
         tracker=trackers[0][1],
         faults=base_faults[0][1],
         flow=config.flow,
@@ -292,7 +292,7 @@ def plan_sweep(config: SweepConfig) -> list[SweepCell]:
         invalid=config.invalid,
     )
     for _, seq in sequences:
-        check_inputs(seq, probe)  # every cell shares these inputs
+        check_inputs(seq, shared)
     cells = []
     for label, name, tracker_config in trackers:
         for fault_label, faults in base_faults:
@@ -305,17 +305,11 @@ def plan_sweep(config: SweepConfig) -> list[SweepCell]:
                 for path, seq in sequences:
                     cell_faults.check_camera_rate(int(seq.fps))
                     for seed in config.seeds:
-                        options = RunOptions(
+                        options = shared.replace(
                             tracker=name,
                             tracker_config=tracker_config,
                             faults=cell_faults,
-                            flow=config.flow,
-                            poses=config.poses,
-                            masks=config.masks,
-                            init=config.init,
                             seed=int(seed),
-                            include_rgb=config.include_rgb,
-                            invalid=config.invalid,
                         )
                         parameter = config.parameter.name if config.parameter else None
                         cells.append(

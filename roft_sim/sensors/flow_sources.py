@@ -121,13 +121,17 @@ class StoredFlowSource:
     def name(self) -> str:
         return f"stored:{self.flow_set}"
 
-    def flow(self, sequence: Sequence, from_k: int, to_k: int) -> FlowField | None:
-        _check_frames(sequence, from_k, to_k)
+    def check_sequence(self, sequence: Sequence) -> None:
+        """Raises :class:`ConfigError` when ``sequence`` has no stored set of this name."""
         if self.flow_set not in sequence.flow_sets():
             raise ConfigError(
                 f"sequence {sequence.name!r} has no stored flow set {self.flow_set!r}; it has "
                 f"{list(sequence.flow_sets()) or 'none'}; pick one of those or use 'gt' / 'dis'"
             )
+
+    def flow(self, sequence: Sequence, from_k: int, to_k: int) -> FlowField | None:
+        _check_frames(sequence, from_k, to_k)
+        self.check_sequence(sequence)
         if to_k - from_k != 1:
             return None
         return sequence.flow(to_k, self.flow_set)
