@@ -121,13 +121,19 @@ def _tar_members(archive: Path, tar: tarfile.TarFile) -> list[tarfile.TarInfo]:
                 "other special file; only regular files and folders are accepted"
             )
         total += member.size
-        if len(members) >= _MAX_MEMBERS or total > MAX_UNPACKED_BYTES:
-            raise DatasetFormatError(
-                f"archive {located(archive)} would unpack to more than {_MAX_MEMBERS} files or "
-                f"{MAX_UNPACKED_BYTES} bytes; refusing it"
-            )
+        _check_unpacked_size(archive, len(members), total)
         members.append(member)
     return members
+
+
+def _check_unpacked_size(archive: Path, members_before: int, total_bytes: int) -> None:
+    """Refuses an archive once it lists ``_MAX_MEMBERS`` members or unpacks beyond
+    ``MAX_UNPACKED_BYTES`` (a zip bomb), counting the member being added."""
+    if members_before >= _MAX_MEMBERS or total_bytes > MAX_UNPACKED_BYTES:
+        raise DatasetFormatError(
+            f"archive {located(archive)} would unpack to more than {_MAX_MEMBERS} files or "
+            f"{MAX_UNPACKED_BYTES} bytes; refusing it"
+        )
 
 
 def _zip_members(archive: Path, zf: zipfile.ZipFile) -> list[zipfile.ZipInfo]:
@@ -141,11 +147,7 @@ def _zip_members(archive: Path, zf: zipfile.ZipFile) -> list[zipfile.ZipInfo]:
                 "special file; only regular files and folders are accepted"
             )
         total += info.file_size
-        if len(members) >= _MAX_MEMBERS or total > MAX_UNPACKED_BYTES:
-            raise DatasetFormatError(
-                f"archive {located(archive)} would unpack to more than {_MAX_MEMBERS} files or "
-                f"{MAX_UNPACKED_BYTES} bytes; refusing it"
-            )
+        _check_unpacked_size(archive, len(members), total)
         members.append(info)
     return members
 

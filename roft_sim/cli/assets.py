@@ -55,7 +55,8 @@ def assets_dir_from_args(args: argparse.Namespace) -> Path | None:
     return path
 
 
-def _cache_dir(args: argparse.Namespace) -> Path:
+def cache_dir_from_args(args: argparse.Namespace) -> Path:
+    """The asset cache: ``--cache``, else ``$ROFT_SIM_CACHE``, else ``~/.cache/roft_sim``."""
     return args.cache if args.cache is not None else default_cache_dir(os.environ)
 
 
@@ -104,7 +105,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _run_list(args: argparse.Namespace) -> int:
-    assets_dir, cache_dir = assets_dir_from_args(args), _cache_dir(args)
+    assets_dir, cache_dir = assets_dir_from_args(args), cache_dir_from_args(args)
     rows = []
     for info in list_objects():
         path = find_ycb_mesh(info.name, assets_dir=assets_dir, cache_dir=cache_dir)
@@ -133,7 +134,7 @@ def _run_list(args: argparse.Namespace) -> int:
 
 
 def _run_install(args: argparse.Namespace) -> int:
-    cache_dir = _cache_dir(args)
+    cache_dir = cache_dir_from_args(args)
     paths = install_assets(
         args.source,
         cache_dir,

@@ -9,7 +9,7 @@ import logging
 import os
 from pathlib import Path
 
-from roft_sim.cli.assets import assets_dir_from_args
+from roft_sim.cli.assets import assets_dir_from_args, cache_dir_from_args
 from roft_sim.errors import ConfigError
 
 __all__ = ["register"]
@@ -70,11 +70,10 @@ def _run(args: argparse.Namespace) -> int:
     scenario = load_scenario(args.scenario)
     assets_dir = assets_dir_from_args(args)
     backend = require_gl_backend(os.environ)  # before anything imports mujoco
-    from roft_sim.assets import default_cache_dir
     from roft_sim.render.preview import write_preview
     from roft_sim.render.scene_renderer import SceneRenderer
 
-    cache_dir = args.cache or default_cache_dir(os.environ)
+    cache_dir = cache_dir_from_args(args)
     scale = args.scale
     if scale is None:
         scale = 0.5 if scenario.intrinsics.width_px > 640 else 1.0

@@ -25,6 +25,7 @@ from roft_sim.datasets import SequenceWriter, open_sequence, open_writer
 from roft_sim.datasets.metadata import dumps_json
 from roft_sim.errors import ConfigError
 from roft_sim.scenario import Scenario
+from roft_sim.sensors.flow_sources import NVOF_GRID_PX
 
 _log = logging.getLogger(__name__)
 
@@ -217,13 +218,15 @@ def _warn_about_grid_width(scenario: Scenario) -> None:
     grid_sets = [
         f.set_name for f in scenario.networks.flow_sets if f.source.startswith("nvof-like")
     ]
-    if grid_sets and width % 4:
-        cols = -(-width // 4)
+    g = NVOF_GRID_PX
+    if grid_sets and width % g:
+        cols = -(-width // g)
         _log.warning(
             "%s: flow sets %s have %d grid columns for a width of %d px; the reference ROFT reads "
-            "their grid as %d // %d = %d px instead of 4. Use a width that is a multiple of 4 "
+            "their grid as %d // %d = %d px instead of %d. Use a width that is a multiple of %d "
             "(e.g. %d) if the reference code will read this dataset",
-            scenario.name, grid_sets, cols, width, width, cols, width // cols, width - width % 4,
+            scenario.name, grid_sets, cols, width, width, cols, width // cols, g, g,
+            width - width % g,
         )  # fmt: skip
 
 
