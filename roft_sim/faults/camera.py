@@ -95,7 +95,7 @@ class _EllipticalHoles:
     """Smallest hole semi-axis [px], >= 1."""
     max_radius_px: int = 30
     """Largest hole semi-axis [px]."""
-    stage: ClassVar[str] = "frame"
+    stage: ClassVar[Literal["frame"]] = "frame"
 
     def __post_init__(self) -> None:
         _check_occurrence(self.p, self.burst_frames)
@@ -142,7 +142,7 @@ class DepthNoise:
     """Frames each burst lasts, >= 1."""
     sd_m: float = 0.01
     """Noise standard deviation [m], > 0."""
-    stage: ClassVar[str] = "frame"
+    stage: ClassVar[Literal["frame"]] = "frame"
 
     def __post_init__(self) -> None:
         _check_occurrence(self.p, self.burst_frames)
@@ -174,7 +174,7 @@ class FlowNoise:
     """Frames each burst lasts, >= 1."""
     sd_px: float = 0.5
     """Noise standard deviation per component [px], > 0."""
-    stage: ClassVar[str] = "frame"
+    stage: ClassVar[Literal["frame"]] = "frame"
 
     def __post_init__(self) -> None:
         _check_occurrence(self.p, self.burst_frames)
@@ -234,7 +234,7 @@ class FlowReversed:
     """Frames each burst lasts, >= 1."""
     mode: Literal["negate", "backward"] = "negate"
     """How the wrong-direction flow is made."""
-    stage: ClassVar[str] = "frame"
+    stage: ClassVar[Literal["frame"]] = "frame"
 
     def __post_init__(self) -> None:
         _check_occurrence(self.p, self.burst_frames)

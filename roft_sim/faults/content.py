@@ -91,7 +91,7 @@ class TranslationJump:
     """Smallest jump [m]."""
     max_m: float = 0.3
     """Largest jump [m] (drawn uniformly in [min_m, max_m])."""
-    stage: ClassVar[str] = "corruption"
+    stage: ClassVar[Literal["corruption"]] = "corruption"
 
     def __post_init__(self) -> None:
         check_probability("p", self.p)
@@ -101,7 +101,7 @@ class TranslationJump:
             raise ConfigError(f"max_m ({self.max_m}) must be >= min_m ({self.min_m})")
 
     def draw(self, capture_k: I64, rng: np.random.Generator, n_frames: int) -> list[Params | None]:
-        n = capture_k.shape[0]
+        n: int = capture_k.shape[0]
         hit = _hit(rng, self.p, n)
         direction = rng.standard_normal((n, 3))
         direction /= np.maximum(np.linalg.norm(direction, axis=1, keepdims=True), 1e-12)
@@ -131,7 +131,7 @@ class RotationFlip:
     """Object axes to flip about, one chosen uniformly per outlier."""
     angle_rad: float = float(np.pi)
     """Flip angle [rad]."""
-    stage: ClassVar[str] = "corruption"
+    stage: ClassVar[Literal["corruption"]] = "corruption"
 
     def __post_init__(self) -> None:
         check_probability("p", self.p)
@@ -141,7 +141,7 @@ class RotationFlip:
             raise ConfigError(f"angle_rad must be finite, got {self.angle_rad!r}")
 
     def draw(self, capture_k: I64, rng: np.random.Generator, n_frames: int) -> list[Params | None]:
-        n = capture_k.shape[0]
+        n: int = capture_k.shape[0]
         hit = _hit(rng, self.p, n)
         axis = rng.integers(0, len(self.axes), size=n)
         return [{"axis": self.axes[int(axis[i])]} if hit[i] else None for i in range(n)]
@@ -171,7 +171,7 @@ class WrongObject:
     """Nearest depth of the wrong object [m], > 0."""
     max_depth_m: float = 1.2
     """Farthest depth [m]."""
-    stage: ClassVar[str] = "corruption"
+    stage: ClassVar[Literal["corruption"]] = "corruption"
 
     def __post_init__(self) -> None:
         check_probability("p", self.p)
@@ -183,7 +183,7 @@ class WrongObject:
             )
 
     def draw(self, capture_k: I64, rng: np.random.Generator, n_frames: int) -> list[Params | None]:
-        n = capture_k.shape[0]
+        n: int = capture_k.shape[0]
         hit = _hit(rng, self.p, n)
         uv_rel = rng.random((n, 2))
         depth = rng.uniform(self.min_depth_m, self.max_depth_m, size=n)
@@ -231,7 +231,7 @@ class MaskShift:
     """Smallest shift length [px], >= 1."""
     max_px: int = 20
     """Largest shift length [px]."""
-    stage: ClassVar[str] = "corruption"
+    stage: ClassVar[Literal["corruption"]] = "corruption"
 
     def __post_init__(self) -> None:
         check_probability("p", self.p)
@@ -273,7 +273,7 @@ class MaskMorphology:
     """Smallest signed radius [px] (negative: erosion)."""
     max_radius_px: int = 5
     """Largest signed radius [px] (positive: dilation)."""
-    stage: ClassVar[str] = "corruption"
+    stage: ClassVar[Literal["corruption"]] = "corruption"
 
     def __post_init__(self) -> None:
         check_probability("p", self.p)
@@ -282,7 +282,7 @@ class MaskMorphology:
         )
 
     def draw(self, capture_k: I64, rng: np.random.Generator, n_frames: int) -> list[Params | None]:
-        n = capture_k.shape[0]
+        n: int = capture_k.shape[0]
         hit = _hit(rng, self.p, n)
         r = rng.integers(self.min_radius_px, self.max_radius_px, size=n, endpoint=True)
         return [{"radius_px": int(r[i])} if hit[i] else None for i in range(n)]
@@ -310,7 +310,7 @@ class EmptyMask:
     kind: Literal["mask_empty"] = "mask_empty"
     p: float = 0.05
     """Probability per result [-]."""
-    stage: ClassVar[str] = "corruption"
+    stage: ClassVar[Literal["corruption"]] = "corruption"
 
     def __post_init__(self) -> None:
         check_probability("p", self.p)
@@ -340,7 +340,7 @@ class SpuriousBlobs:
     """Smallest blob semi-axis [px], >= 1."""
     max_radius_px: int = 15
     """Largest blob semi-axis [px]."""
-    stage: ClassVar[str] = "corruption"
+    stage: ClassVar[Literal["corruption"]] = "corruption"
 
     def __post_init__(self) -> None:
         check_probability("p", self.p)
@@ -351,7 +351,7 @@ class SpuriousBlobs:
         )
 
     def draw(self, capture_k: I64, rng: np.random.Generator, n_frames: int) -> list[Params | None]:
-        n = capture_k.shape[0]
+        n: int = capture_k.shape[0]
         hit = _hit(rng, self.p, n)
         count = rng.integers(1, self.max_count, size=n, endpoint=True)
         seed = _seeds(rng, n)
@@ -370,7 +370,7 @@ class SpuriousBlobs:
             )
             angle = float(rng.uniform(0.0, 180.0))
             cv2.ellipse(canvas, centre, axes, angle, 0.0, 360.0, 1, thickness=-1)
-        return mask | canvas.astype(bool)
+        return mask | canvas.astype(np.bool_)
 
     def describe(self) -> str:
         return (
@@ -390,7 +390,7 @@ class WrongFrameMask:
     """Probability per result [-]."""
     max_offset_frames: int = 6
     """Largest frame offset, >= 1."""
-    stage: ClassVar[str] = "corruption"
+    stage: ClassVar[Literal["corruption"]] = "corruption"
 
     def __post_init__(self) -> None:
         check_probability("p", self.p)

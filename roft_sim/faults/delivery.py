@@ -45,7 +45,7 @@ class Duplicate:
     after it)."""
     max_after_frames: int = 0
     """Latest second delivery [frames]."""
-    stage: ClassVar[str] = "delivery"
+    stage: ClassVar[Literal["delivery"]] = "delivery"
 
     def __post_init__(self) -> None:
         check_probability("p", self.p)
@@ -90,7 +90,7 @@ class Stale:
     kind: Literal["stale"] = "stale"
     p: float = 0.1
     """Probability per result [-]."""
-    stage: ClassVar[str] = "delivery"
+    stage: ClassVar[Literal["delivery"]] = "delivery"
 
     def __post_init__(self) -> None:
         check_probability("p", self.p)
@@ -126,7 +126,7 @@ class Reorder:
     """Probability per result [-]."""
     past_events: int = 1
     """How many later (not held) deliveries overtake it, >= 1."""
-    stage: ClassVar[str] = "delivery"
+    stage: ClassVar[Literal["delivery"]] = "delivery"
 
     def __post_init__(self) -> None:
         check_probability("p", self.p)

@@ -35,14 +35,14 @@ class BernoulliDropout:
     kind: Literal["dropout"] = "dropout"
     p: float = 0.1
     """Loss probability per item [-]."""
-    stage: ClassVar[str] = "loss"
+    stage: ClassVar[Literal["loss"]] = "loss"
 
     def __post_init__(self) -> None:
         check_probability("p", self.p)
 
     def dropped(self, capture_k: I64, rng: np.random.Generator) -> Bool:
         """(R,) bool: True for the lost items among ``capture_k`` ``(R,)`` (in capture order)."""
-        return rng.random(capture_k.shape[0]) < self.p
+        return rng.random(len(capture_k)) < self.p
 
     def describe(self) -> str:
         return f"dropout p={self.p:g}"
@@ -112,7 +112,7 @@ class GilbertElliott:
     """Loss probability in the bad state [-]."""
     loss_in_good: float = 0.0
     """Loss probability in the good state [-]."""
-    stage: ClassVar[str] = "loss"
+    stage: ClassVar[Literal["loss"]] = "loss"
 
     def __post_init__(self) -> None:
         for name in ("p_good_to_bad", "p_bad_to_good", "loss_in_bad", "loss_in_good"):
@@ -175,7 +175,7 @@ class Blackout:
             )
 
     @property
-    def stage(self) -> str:
+    def stage(self) -> Literal["loss", "delivery"]:
         """``loss`` when on capture frames, ``delivery`` when on arrival frames."""
         return "loss" if self.on == "capture" else "delivery"
 

@@ -92,7 +92,9 @@ def fault_rng(
     return np.random.default_rng(np.random.SeedSequence(root.entropy, spawn_key=key))
 
 
-def _fault_rngs(root: np.random.SeedSequence, stream: str, faults: tuple[Any, ...]) -> list:
+def _fault_rngs(
+    root: np.random.SeedSequence, stream: str, faults: tuple[Any, ...]
+) -> list[np.random.Generator]:
     seen: dict[str, int] = {}
     rngs = []
     for f in faults:
@@ -209,8 +211,8 @@ def _schedule_stream(
     dropped_by: list[str | None] = [None] * n_runs
     for i, (f, rng) in enumerate(zip(faults, rngs, strict=True)):
         if f.stage == "loss":
-            for r in np.flatnonzero(f.dropped(captures, rng)):
-                dropped_by[r] = dropped_by[r] or label(i)
+            for run in np.flatnonzero(f.dropped(captures, rng)):
+                dropped_by[run] = dropped_by[run] or label(i)
 
     # 4. corruption
     corruptions: list[list[Corruption]] = [[] for _ in range(n_runs)]
@@ -311,7 +313,9 @@ def _schedule_stream(
     return tuple(in_time), tuple(records)
 
 
-def _schedule_camera(faults: FaultConfig, n_frames: int, root: np.random.SeedSequence):
+def _schedule_camera(
+    faults: FaultConfig, n_frames: int, root: np.random.SeedSequence
+) -> CameraSchedule:
     frames = np.arange(n_frames, dtype=np.int64)
     dropped_by: list[str | None] = [None] * n_frames
     depth: list[list[Corruption]] = [[] for _ in range(n_frames)]
@@ -322,8 +326,8 @@ def _schedule_camera(faults: FaultConfig, n_frames: int, root: np.random.SeedSeq
             zip(stream_faults, _fault_rngs(root, stream, stream_faults), strict=True)
         ):
             if f.stage == "loss":
-                for k in np.flatnonzero(f.dropped(frames, rng)):
-                    dropped_by[k] = dropped_by[k] or f"{stream}.faults[{i}] ({f.kind})"
+                for frame in np.flatnonzero(f.dropped(frames, rng)):
+                    dropped_by[frame] = dropped_by[frame] or f"{stream}.faults[{i}] ({f.kind})"
             else:
                 source = f"{stream}.faults[{i}]"
                 for k, params in enumerate(f.draw_frames(n_frames, rng)):

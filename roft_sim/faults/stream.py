@@ -75,7 +75,7 @@ class FaultLedger:
         """Counts per stream and fate, outliers, duplicates and camera faults (JSON-ready)."""
         out: dict[str, Any] = {}
         for stream in ("pose", "mask"):
-            records = self.records(stream)  # type: ignore[arg-type]
+            records = self.records(stream)
             fates: dict[str, int] = {}
             for r in records:
                 fates[r.fate] = fates.get(r.fate, 0) + 1

@@ -52,10 +52,10 @@ def _strip_rows(schedule: DetectionSchedule) -> list[tuple[str, str]]:
     rows = [("camera", "".join(camera))]
     for stream in ("pose", "mask"):
         runs = ["."] * n
-        for r in schedule.records(stream):  # type: ignore[arg-type]
+        for r in schedule.records(stream):
             runs[r.true_capture_k] = _run_mark(r)
         counts = [0] * n
-        for e in schedule.deliveries(stream):  # type: ignore[arg-type]
+        for e in schedule.deliveries(stream):
             counts[e.arrival_k] += 1
         arrive = "".join("." if c == 0 else str(c) if c <= 9 else "+" for c in counts)
         rows += [(f"{stream} run", "".join(runs)), (f"{stream} arrive", arrive)]
@@ -174,7 +174,7 @@ def format_timeline(
     lines.append(STRIP_LEGEND)
     for stream in ("pose", "mask"):
         lines.append("")
-        lines += _stream_table(schedule, stream)  # type: ignore[arg-type]
+        lines += _stream_table(schedule, stream)
     dropped_frames = [k for k in range(n) if cam.dropped[k]]
     if dropped_frames:
         lines.append("")

@@ -58,7 +58,7 @@ class FixedDelay:
     kind: Literal["delay"] = "delay"
     frames: int = 0
     """Delay [camera frames], >= 0 (6 frames = 200 ms at 30 fps)."""
-    stage: ClassVar[str] = "delay"
+    stage: ClassVar[Literal["delay"]] = "delay"
 
     def __post_init__(self) -> None:
         check_non_negative_int("frames", self.frames)
@@ -84,7 +84,7 @@ class UniformDelay:
     """Smallest delay [frames], >= 0."""
     max_frames: int = 0
     """Largest delay [frames], >= min_frames."""
-    stage: ClassVar[str] = "delay"
+    stage: ClassVar[Literal["delay"]] = "delay"
 
     def __post_init__(self) -> None:
         check_int_range("min_frames", self.min_frames, "max_frames", self.max_frames, minimum=0)
@@ -120,7 +120,7 @@ class LogNormalDelay:
     """Lower clip [frames]."""
     max_frames: int | None = None
     """Upper clip [frames]; None = no clip."""
-    stage: ClassVar[str] = "delay"
+    stage: ClassVar[Literal["delay"]] = "delay"
 
     def __post_init__(self) -> None:
         check_positive_finite("median_frames", self.median_frames)
@@ -155,7 +155,7 @@ class EmpiricalDelay:
     """Possible delays [frames], each >= 0 (e.g. measured network latencies, rounded up)."""
     weights: tuple[float, ...] | None = None
     """Relative frequency of each delay (normalised here); None = all equally likely."""
-    stage: ClassVar[str] = "delay"
+    stage: ClassVar[Literal["delay"]] = "delay"
 
     def __post_init__(self) -> None:
         if not self.frames:
@@ -176,7 +176,7 @@ class EmpiricalDelay:
         if self.weights is None:
             return None
         w = np.asarray(self.weights, dtype=np.float64)
-        return w / w.sum()
+        return w / float(w.sum())
 
     def delays(self, rng: np.random.Generator, n: int) -> I64:
         """(n,) int64 delays [frames]."""
@@ -213,7 +213,7 @@ class Rate:
     """Network rate [Hz]; must divide the camera fps (checked when the stream is built)."""
     phase_frames: int = 0
     """First frame the network runs on, >= 0."""
-    stage: ClassVar[str] = "sampling"
+    stage: ClassVar[Literal["sampling"]] = "sampling"
 
     def __post_init__(self) -> None:
         if (self.period_frames is None) == (self.rate_hz is None):
@@ -275,7 +275,7 @@ class BusyNetwork:
     """Processing time per run [frames] (any delay model)."""
     phase_frames: int = 0
     """First frame the network runs on, >= 0."""
-    stage: ClassVar[str] = "sampling"
+    stage: ClassVar[Literal["sampling"]] = "sampling"
 
     def __post_init__(self) -> None:
         check_non_negative_int("phase_frames", self.phase_frames)
@@ -317,7 +317,7 @@ class ClockSkew:
     """Relative clock-rate error [-] (0.01: the network's clock runs 1 % fast)."""
     noise_sd_frames: float = 0.0
     """Standard deviation of per-result time-stamp noise [frames], >= 0."""
-    stage: ClassVar[str] = "stamp"
+    stage: ClassVar[Literal["stamp"]] = "stamp"
 
     def __post_init__(self) -> None:
         for name in ("offset_frames", "drift"):
