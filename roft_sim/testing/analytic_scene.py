@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import Protocol, cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -142,8 +142,12 @@ class AnalyticMotion:
         """The same path with amplitudes scaled (speeds scale by the same factor)."""
         return dataclasses.replace(
             self,
-            amplitude_m=tuple(a * speed_scale for a in self.amplitude_m),
-            rotation_amplitude_rad=tuple(a * speed_scale for a in self.rotation_amplitude_rad),
+            amplitude_m=cast(
+                tuple[float, float, float], tuple(a * speed_scale for a in self.amplitude_m)
+            ),
+            rotation_amplitude_rad=cast(
+                tuple[float, float], tuple(a * speed_scale for a in self.rotation_amplitude_rad)
+            ),
         )
 
     def track(self, t_s: ArrayLike) -> PoseTrack:
@@ -282,7 +286,8 @@ def _shade(coords_m: F64, surface: NDArray[np.int64], waves: tuple[F64, F64, F64
     f = freq[surface]  # (N, 3, K, 2)
     arg = 2.0 * np.pi * np.einsum("nckd,nd->nck", f, coords_m) + phase[surface]
     base = 0.25 + 0.5 * (surface[:, None] % 3 == np.arange(3)[None, :])  # a tint per surface
-    return np.clip(base + 0.35 * np.sum(amp[surface] * np.sin(arg), axis=-1), 0.0, 1.0)
+    rgb: F64 = np.clip(base + 0.35 * np.sum(amp[surface] * np.sin(arg), axis=-1), 0.0, 1.0)
+    return rgb
 
 
 def _render_wall(

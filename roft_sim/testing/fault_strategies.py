@@ -19,6 +19,7 @@ probabilities, so a failing example reads as a short fault list; print it as a t
 from __future__ import annotations
 
 import functools
+from typing import Any, TypeVar
 
 from hypothesis import strategies as st
 
@@ -35,6 +36,7 @@ from roft_sim.faults import (
     EmpiricalDelay,
     EmptyMask,
     FaultConfig,
+    FirstResult,
     FixedDelay,
     FlowFaults,
     FlowHoles,
@@ -200,19 +202,22 @@ def mask_corruption_faults() -> st.SearchStrategy:
     )  # fmt: skip
 
 
+_StreamFaults = TypeVar("_StreamFaults", PoseStreamFaults, MaskStreamFaults)
+
+
 @st.composite
 def _stream_faults(
     draw: st.DrawFn,
-    cls: type,
-    content: st.SearchStrategy | None,
+    cls: type[_StreamFaults],
+    content: st.SearchStrategy[Any] | None,
     *,
     timing: bool,
     loss: bool,
     delivery: bool,
     skew: bool,
     max_delay_frames: int,
-) -> PoseStreamFaults | MaskStreamFaults:
-    faults: list = []
+) -> _StreamFaults:
+    faults: list[Any] = []
     if timing:
         sampling = draw(st.none() | sampling_faults())
         if sampling is not None:
@@ -226,7 +231,7 @@ def _stream_faults(
         faults += draw(st.lists(stamp_faults(), max_size=1))
     if delivery:
         faults += draw(st.lists(delivery_faults(), max_size=3))
-    first = draw(st.sampled_from(["delayed", "undelayed", "undelayed_and_delayed"]))
+    first: FirstResult = draw(st.sampled_from(["delayed", "undelayed", "undelayed_and_delayed"]))
     return cls(first_result=first, faults=tuple(faults))
 
 
@@ -311,7 +316,7 @@ def fault_configs(
     max_delay_frames: int = 15,
 ) -> st.SearchStrategy[FaultConfig]:
     """Complete fault configurations with the enabled families (all by default)."""
-    flags = {
+    flags: dict[str, Any] = {
         "timing": timing,
         "loss": loss,
         "content": content,

@@ -7,12 +7,15 @@ sliver triangles; these functions are exact up to rounding.
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
 __all__ = ["closest_point_on_triangles", "surface_distance_m"]
 
 
-def closest_point_on_triangles(tri: np.ndarray, p: np.ndarray) -> np.ndarray:
+def closest_point_on_triangles(
+    tri: NDArray[np.float64], p: NDArray[np.float64]
+) -> NDArray[np.float64]:
     """Closest points (N, 3) on triangles ``tri`` (N, 3, 3) to points ``p`` (N, 3).
 
     Ericson, Real-Time Collision Detection, 5.1.5 (Voronoi regions), vectorised; exact up to
@@ -28,7 +31,7 @@ def closest_point_on_triangles(tri: np.ndarray, p: np.ndarray) -> np.ndarray:
     with np.errstate(divide="ignore", invalid="ignore"):
         denom = va + vb + vc
         v_in, w_in = vb / denom, vc / denom
-        out = a + ab * v_in[:, None] + ac * w_in[:, None]  # inside the face
+        out: NDArray[np.float64] = a + ab * v_in[:, None] + ac * w_in[:, None]  # inside the face
         t_ab = d1 / (d1 - d3)
         t_ac = d2 / (d2 - d6)
         t_bc = (d4 - d3) / ((d4 - d3) + (d5 - d6))
@@ -47,7 +50,9 @@ def closest_point_on_triangles(tri: np.ndarray, p: np.ndarray) -> np.ndarray:
     return out
 
 
-def surface_distance_m(vertices_m, faces, points_m) -> np.ndarray:
+def surface_distance_m(
+    vertices_m: ArrayLike, faces: ArrayLike, points_m: ArrayLike
+) -> NDArray[np.float64]:
     """Exact distance [m] from each point to a triangle mesh (oracle, without rtree).
 
     An upper bound comes from the 16 triangles with the nearest centroids (scipy cKDTree); then
@@ -65,7 +70,7 @@ def surface_distance_m(vertices_m, faces, points_m) -> np.ndarray:
     near = closest_point_on_triangles(tri[idx.ravel()], rep)
     # zero-area triangles give NaN; they carry no surface (their edges belong to neighbours)
     upper = np.nan_to_num(np.linalg.norm(near - rep, axis=1), nan=np.inf).reshape(-1, k).min(1)
-    best = upper.copy()
+    best: NDArray[np.float64] = upper.copy()
     for start in range(0, len(points), 128):
         p = points[start : start + 128]
         gap = np.linalg.norm(p[:, None] - centroid[None], axis=2) - radius[None]

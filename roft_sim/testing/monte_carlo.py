@@ -26,6 +26,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -39,6 +40,9 @@ from roft_sim.geometry.so3 import matrix_from_rotvec
 from roft_sim.records import Estimate, PoseTrack
 from roft_sim.testing.analytic_scene import AnalyticBox
 from roft_sim.trackers import Tracker, run_tracker
+
+if TYPE_CHECKING:
+    from roft_sim.trackers.roft import PoseUKFConfig
 
 F64 = NDArray[np.float64]
 Vec3 = tuple[float, float, float]
@@ -108,22 +112,22 @@ class ConstantVelocityPoseModel:
                 raise ConfigError(f"{owner}.{name} must be finite, got {getattr(self, name)}")
 
     @classmethod
-    def matching(cls, pose_ukf: object, **overrides: Vec3) -> ConstantVelocityPoseModel:
+    def matching(cls, pose_ukf: PoseUKFConfig, **overrides: Vec3) -> ConstantVelocityPoseModel:
         """The model a :class:`roft_sim.trackers.roft.PoseUKFConfig` assumes (process noise,
         measurement noise and prior), so that filter is consistent on it by construction."""
         cfg = pose_ukf
         values = {
-            "accel_psd_m2ps3": cfg.sigma_linear,  # type: ignore[attr-defined]
-            "angular_rw_var_radps2": cfg.sigma_angular,  # type: ignore[attr-defined]
-            "position_noise_var_m2": cfg.meas_cov_x,  # type: ignore[attr-defined]
-            "rotation_noise_var_rad2": cfg.meas_cov_q,  # type: ignore[attr-defined]
-            "initial_position_var_m2": cfg.cov_x0,  # type: ignore[attr-defined]
-            "initial_rotation_var_rad2": cfg.cov_q0,  # type: ignore[attr-defined]
-            "initial_velocity_var_m2ps2": cfg.cov_v0,  # type: ignore[attr-defined]
-            "initial_angular_var_rad2ps2": cfg.cov_w0,  # type: ignore[attr-defined]
+            "accel_psd_m2ps3": cfg.sigma_linear,
+            "angular_rw_var_radps2": cfg.sigma_angular,
+            "position_noise_var_m2": cfg.meas_cov_x,
+            "rotation_noise_var_rad2": cfg.meas_cov_q,
+            "initial_position_var_m2": cfg.cov_x0,
+            "initial_rotation_var_rad2": cfg.cov_q0,
+            "initial_velocity_var_m2ps2": cfg.cov_v0,
+            "initial_angular_var_rad2ps2": cfg.cov_w0,
         }
         values.update(overrides)
-        return cls(**values)  # type: ignore[arg-type]
+        return cls(**values)
 
     def initial_covariance(self) -> F64:
         """(12, 12) prior covariance in :data:`~roft_sim.records.ESTIMATE_COVARIANCE_ORDER`."""

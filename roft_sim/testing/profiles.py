@@ -12,6 +12,8 @@ the active profile.
 
 from __future__ import annotations
 
+from typing import Any
+
 from hypothesis import HealthCheck, settings
 from hypothesis.errors import InvalidArgument
 
@@ -41,7 +43,7 @@ factory: every call builds a fresh tracker, so sharing it across examples is saf
 def register_hypothesis_profiles() -> None:
     """Registers :data:`CI_PROFILE` and :data:`THOROUGH_PROFILE` unless a profile of that name
     exists already (a project's own ``thorough`` wins). Loads neither."""
-    wanted = {
+    wanted: dict[str, dict[str, Any]] = {
         CI_PROFILE: {"max_examples": 60, "derandomize": True, "database": None},
         THOROUGH_PROFILE: {"max_examples": 2000},
     }
@@ -64,6 +66,7 @@ def tracker_settings(*, fraction: float = 1.0, min_examples: int = 1) -> setting
     """
     if not fraction > 0:
         raise ValueError(f"fraction must be > 0, got {fraction}")
+    assert settings.default is not None  # typed Optional; hypothesis sets it on import
     n = max(min_examples, int(round(settings.default.max_examples * fraction)))
     checks = list(TRACKER_HEALTH_CHECKS)
     return settings(max_examples=n, deadline=None, suppress_health_check=checks)

@@ -33,7 +33,7 @@ from __future__ import annotations
 import os
 import sys
 from collections.abc import Callable
-from typing import Any
+from typing import Any, cast
 
 import pytest
 
@@ -118,7 +118,7 @@ def rendered_sequence_factory(tmp_path_factory: pytest.TempPathFactory) -> Calla
                 tmp_path_factory.mktemp(name),
                 scenario=scenario,
                 frames=frames,
-                resolution=tuple(resolution),
+                resolution=cast(tuple[int, int], tuple(resolution)),
                 seed=seed,
                 gl_backend=backend,
             )

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import TypedDict
+
 import numpy as np
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
@@ -17,7 +19,15 @@ __all__ = [
     "transforms",
 ]
 
-_finite = {"allow_nan": False, "allow_infinity": False}
+
+class FiniteFloats(TypedDict):
+    """Keyword arguments of ``st.floats`` that exclude NaN and infinities."""
+
+    allow_nan: bool
+    allow_infinity: bool
+
+
+_finite: FiniteFloats = {"allow_nan": False, "allow_infinity": False}
 
 
 def unit_quaternions() -> st.SearchStrategy[np.ndarray]:

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 from hypothesis import event
@@ -58,6 +59,7 @@ from roft_sim.testing.profiles import (
     register_hypothesis_profiles,
     tracker_settings,
 )
+from roft_sim.testing.strategies import FiniteFloats
 from roft_sim.testing.streams import FaultedStream
 from roft_sim.testing.trajectory_strategies import synthetic_trajectories
 from roft_sim.trajectories.base import Trajectory
@@ -77,7 +79,7 @@ __all__ = [
 
 register_hypothesis_profiles()
 
-_finite = {"allow_nan": False, "allow_infinity": False}
+_finite: FiniteFloats = {"allow_nan": False, "allow_infinity": False}
 
 
 @st.composite
@@ -114,12 +116,12 @@ def analytic_motions(
         lambda a: np.linalg.norm(a) > 0.1
     )
     return AnalyticMotion(
-        amplitude_m=tuple(float(a) for a in amp),
-        frequency_hz=tuple(float(f) for f in freq),
+        amplitude_m=cast(tuple[float, float, float], tuple(float(a) for a in amp)),
+        frequency_hz=cast(tuple[float, float, float], tuple(float(f) for f in freq)),
         phase_rad=phase,
         rotation_axes=(draw(axis), draw(axis)),
-        rotation_amplitude_rad=tuple(float(a) for a in ramp),
-        rotation_frequency_hz=tuple(float(f) for f in rfreq),
+        rotation_amplitude_rad=cast(tuple[float, float], tuple(float(a) for a in ramp)),
+        rotation_frequency_hz=cast(tuple[float, float], tuple(float(f) for f in rfreq)),
         rotation_phase_rad=rphase,
         initial_rotvec_rad=draw(st.tuples(*[st.floats(-1.0, 1.0, **_finite)] * 3)),
     )

@@ -257,7 +257,7 @@ def pose_delays(observations: Iterable[Observation]) -> list[int]:
 def is_analytic_sequence(sequence: DatasetSequence) -> bool:
     """True for sequences made by :func:`roft_sim.testing.analytic_scene.analytic_box_sequence`."""
     meta: Any = sequence.metadata()
-    return meta.get("generator") == "roft_sim.testing.analytic_scene"
+    return bool(meta.get("generator") == "roft_sim.testing.analytic_scene")
 
 
 def _default_depth_renderer(sequence: DatasetSequence) -> DepthRenderer:

@@ -189,7 +189,7 @@ def _compare(
     violations: list[str] = []
     checked = 0
     for k in np.flatnonzero(frames):
-        a, b = first[k], second[k]
+        a, b = first[int(k)], second[int(k)]
         checked += 1
         diff = estimate_differences(a, b)
         if diff["valid"]:
@@ -217,7 +217,9 @@ def _compare(
     )
 
 
-def _frames_mask(frames: Sequence[int] | NDArray | None, n: int) -> NDArray[np.bool_]:
+def _frames_mask(
+    frames: Sequence[int] | NDArray[np.integer | np.bool_] | None, n: int
+) -> NDArray[np.bool_]:
     if frames is None:
         return np.ones(n, dtype=bool)
     arr = np.asarray(frames)
@@ -235,7 +237,7 @@ def check_same_estimates(
     first: Sequence[Observation],
     second: Sequence[Observation],
     *,
-    frames: Sequence[int] | NDArray | None = None,
+    frames: Sequence[int] | NDArray[np.integer | np.bool_] | None = None,
     initial: Estimate | None = None,
     tol: Tolerance = REPLAY_EXACT,
     name: str = "same estimates",
@@ -425,7 +427,7 @@ def check_error_bounded(
     *,
     bound_m: float,
     bound_rad: float,
-    frames: Sequence[int] | NDArray | None = None,
+    frames: Sequence[int] | NDArray[np.integer | np.bool_] | None = None,
     allow_invalid: bool = False,
 ) -> PropertyResult:
     """Bounded error: position and rotation errors stay within ``bound_m`` [m] and

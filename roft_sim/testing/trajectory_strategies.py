@@ -22,6 +22,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from roft_sim.geometry.camera import CameraIntrinsics
 from roft_sim.geometry.so3 import rotvec_from_matrix
+from roft_sim.testing.strategies import FiniteFloats
 from roft_sim.trajectories.base import Trajectory
 from roft_sim.trajectories.build import FAST_YCB_CAMERA, build_trajectory
 from roft_sim.trajectories.synthetic import SyntheticMotionConfig
@@ -58,7 +59,7 @@ def synthetic_motion_configs(
         raise ValueError("need 0 < min_angular_speed_dps <= max_angular_speed_dps")
     if not (1.0 <= min_duration_s <= max_duration_s):
         raise ValueError("need 1 <= min_duration_s <= max_duration_s")
-    finite = {"allow_nan": False, "allow_infinity": False}
+    finite: FiniteFloats = {"allow_nan": False, "allow_infinity": False}
     duration = draw(st.floats(min_duration_s, max_duration_s, **finite))
     longest = min(0.9, 0.5 * duration)
     weights = draw(st.lists(st.floats(0.0, 1.0, **finite), min_size=4, max_size=4))
@@ -83,6 +84,7 @@ def synthetic_motion_configs(
 @st.composite
 def synthetic_trajectories(
     draw: st.DrawFn,
+    /,
     *,
     intrinsics: CameraIntrinsics = FAST_YCB_CAMERA,
     object_radius_m: float = 0.1,
@@ -103,7 +105,7 @@ def synthetic_trajectories(
 @st.composite
 def sample_times(draw: st.DrawFn, trajectory: Trajectory, *, max_size: int = 32) -> F64:
     """Sorted ``(N,)`` times [s] inside ``[start_s, end_s]`` of ``trajectory``, N >= 1."""
-    finite = {"allow_nan": False, "allow_infinity": False}
+    finite: FiniteFloats = {"allow_nan": False, "allow_infinity": False}
     times = draw(
         st.lists(
             st.floats(trajectory.start_s, trajectory.end_s, **finite),
@@ -144,7 +146,8 @@ def finite_difference_errors(
 
     def rel(analytic: F64, fd: F64, floor: float) -> F64:
         size = np.maximum(np.linalg.norm(analytic, axis=-1), floor)
-        return np.linalg.norm(analytic - fd, axis=-1) / size
+        err: F64 = np.linalg.norm(analytic - fd, axis=-1) / size
+        return err
 
     return {
         "v": rel(mid.v_mps, v_fd, floor_mps),
