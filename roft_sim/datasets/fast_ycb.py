@@ -116,7 +116,7 @@ class FastYcbWriter(StreamingWriter):
     def _metadata_path(self) -> Path:
         return self.sequence_path / "metadata.json"
 
-    def _mask_path(self, mask_set: str, k: int) -> Path:
+    def _mask_path(self, mask_set: str, k: int) -> str:
         return f"{self.sequence_path}/masks/{mask_set}/{self.settings.object_name}_{k}.png"
 
     def _write_frame_files(self, frame: DatasetFrame) -> dict[str, Any]:

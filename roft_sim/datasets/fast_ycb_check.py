@@ -571,6 +571,7 @@ class _Checker:
         rows, cols = rows[::step], cols[::step]
         pix = np.stack([cols, rows, np.ones_like(rows)]).astype(np.float64)
         X = np.linalg.inv(self.K) @ pix * depth[rows, cols]
+        assert self.gt_poses is not None  # the callers check it
         M = self.gt_poses[k + 1] @ np.linalg.inv(self.gt_poses[k])
         X1 = M[:3, :3] @ X + M[:3, 3:4]
         if (X1[2] <= 0).any():

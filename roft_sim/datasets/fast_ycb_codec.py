@@ -68,7 +68,7 @@ _DEPTH_HEADER = struct.Struct("<QQ")
 _FLOW_HEADER = struct.Struct("<iQQ")
 
 
-def _check_side(value: int, what: str, path: Path) -> None:
+def _check_side(value: int, what: str, path: str | Path) -> None:
     if not 0 < value <= MAX_IMAGE_SIDE_PX:
         raise DatasetFormatError(
             f"{located(path)}: header {what} = {value} is not a plausible image size "
@@ -82,7 +82,9 @@ def encode_depth_float(depth_m: F32) -> bytes:
     return _DEPTH_HEADER.pack(w, h) + np.ascontiguousarray(depth_m, dtype="<f4").tobytes()
 
 
-def decode_depth_float(data: bytes, path: Path, *, shape: tuple[int, int] | None = None) -> F32:
+def decode_depth_float(
+    data: bytes, path: str | Path, *, shape: tuple[int, int] | None = None
+) -> F32:
     """``(H, W)`` float32 z-depth [m] from Fast-YCB depth bytes; values <= 0 become 0.
 
     Args:
@@ -112,7 +114,7 @@ def decode_depth_float(data: bytes, path: Path, *, shape: tuple[int, int] | None
         raise DatasetFormatError(
             f"depth file {located(path)} is {w}x{h}; the camera is {shape[1]}x{shape[0]}"
         )
-    depth = np.frombuffer(data, dtype="<f4", offset=_DEPTH_HEADER.size).reshape(h, w)
+    depth: F32 = np.frombuffer(data, dtype="<f4", offset=_DEPTH_HEADER.size).reshape(h, w)
     if not np.isfinite(depth).all():
         bad = np.argwhere(~np.isfinite(depth))[0]
         raise DatasetFormatError(
@@ -150,7 +152,7 @@ def encode_flow_float(flow_px: F32, encoding: str) -> bytes:
     return _FLOW_HEADER.pack(cv_type, cols, rows) + body
 
 
-def flow_grid_px(rows: int, cols: int, image_shape: tuple[int, int], path: Path) -> int:
+def flow_grid_px(rows: int, cols: int, image_shape: tuple[int, int], path: str | Path) -> int:
     """Grid cell size [px] of a ``rows x cols`` flow over an ``(H, W)`` image.
 
     ``grid = ceil(W / cols)``, as NVOF sizes its output; it must also give ``rows``.
@@ -166,7 +168,7 @@ def flow_grid_px(rows: int, cols: int, image_shape: tuple[int, int], path: Path)
     return grid
 
 
-def decode_flow_float(data: bytes, path: Path) -> tuple[F32, int]:
+def decode_flow_float(data: bytes, path: str | Path) -> tuple[F32, int]:
     """Flow ``(rows, cols, 2)`` float32 [px] and its OpenCV type from Fast-YCB flow bytes.
 
     S10.5 values are divided by 32 (exact in float32).

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Mapping
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, cast
 
 import numpy as np
 
@@ -19,7 +19,7 @@ from roft_sim.datasets.metadata import read_json
 from roft_sim.datasets.writer_base import RESERVED_METADATA_KEYS, WriterSettings, model_digest
 from roft_sim.errors import ConfigError, DatasetFormatError, located
 from roft_sim.geometry.camera import CameraIntrinsics
-from roft_sim.records import ObjectModel
+from roft_sim.records import FlowField, ObjectModel
 
 __all__ = [
     "DatasetFormat",
@@ -87,7 +87,7 @@ def open_writer(
     if fmt not in DATASET_FORMATS:
         raise ConfigError(f"unknown dataset format {fmt!r}; expected one of {DATASET_FORMATS}")
     options: dict[str, Any] = {}
-    per_format = {
+    per_format: dict[str, dict[str, Any]] = {
         "bop": {"depth_scale_mm": depth_scale_mm, "obj_id": bop_obj_id},
         "hdf5": {"compression": compression, "compression_level": compression_level},
     }
@@ -110,7 +110,12 @@ def open_writer(
         options=options,
         model_digest=model_digest(object_model),
     )
-    cls = {"fast-ycb": FastYcbWriter, "bop": BopWriter, "hdf5": Hdf5Writer}[fmt]
+    writer_types: dict[str, type[FastYcbWriter | BopWriter | Hdf5Writer]] = {
+        "fast-ycb": FastYcbWriter,
+        "bop": BopWriter,
+        "hdf5": Hdf5Writer,
+    }
+    cls = writer_types[fmt]
     return cls(Path(root), settings, object_model=object_model, resume=resume)
 
 
@@ -133,7 +138,7 @@ def detect_format(path: str | Path) -> DatasetFormat:
         if settings.is_file():  # unfinished: its reader will say so clearly
             fmt = read_json(settings, "writer settings").get("format")
             if fmt in ("fast-ycb", "bop"):
-                return fmt
+                return cast(DatasetFormat, fmt)
         if _is_fast_ycb(path):
             return "fast-ycb"
         if is_bop_scene(path):
@@ -232,11 +237,14 @@ def dataset_frames(sequence: Sequence) -> Iterator[DatasetFrame]:
             depth_m=sequence.depth(k),
             T_world_cam=cams[k],
             gt_T_cam_obj=None if gt is None else gt.T_cam_obj[k],
-            gt_v_obj_mps=gt.v_obj_mps[k] if has_vel else None,
-            gt_w_radps=gt.w_radps[k] if has_vel else None,
+            gt_v_obj_mps=gt.v_obj_mps[k] if has_vel and gt is not None else None,
+            gt_w_radps=gt.w_radps[k] if has_vel and gt is not None else None,
             gt_mask=masks.pop(GT_MASK_SET, None),
             gt_mask_full=masks.pop(GT_FULL_MASK_SET, None),
-            flows={} if k == 0 else {n: sequence.flow(k, n) for n in sequence.flow_sets()},
+            # flow() is None only for k = 0 (a None here is refused by DatasetFrame's checks)
+            flows={}
+            if k == 0
+            else cast(dict[str, FlowField], {n: sequence.flow(k, n) for n in sequence.flow_sets()}),
             detector_masks=masks,
             detector_poses={n: (p.T_cam_obj[k] if p.valid[k] else None) for n, p in poses.items()},
         )

@@ -27,7 +27,7 @@ import json
 import os
 from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import h5py
 import numpy as np
@@ -264,7 +264,7 @@ class Hdf5Writer(StreamingWriter):
     ) -> list[tuple[h5py.Dataset, Callable[[dict[str, Any]], Any]]]:
         """The small per-frame datasets, created empty, each with how to get its row from a
         frame record."""
-        specs: list[tuple[str, tuple[int, ...], str, str, str, Callable]] = [
+        specs: list[tuple[str, tuple[int, ...], str, str, str, Callable[..., Any]]] = [
             ("time_s", (), "f8", "s", "camera time stamp t_k", lambda r: r["t_s"]),
             (
                 "T_world_cam", (4, 4), "f8", "m",
@@ -443,7 +443,7 @@ class Hdf5Sequence(SequenceReaderBase):
     def __setstate__(self, state: dict[str, Any]) -> None:
         self.__dict__.update(state)
 
-    def _guard(self, what: str):
+    def _guard(self, what: str) -> _Guard:
         return _Guard(self.path, what)
 
     def _small(self, key: str, shape: tuple[int, ...]) -> np.ndarray:
@@ -538,7 +538,8 @@ class Hdf5Sequence(SequenceReaderBase):
             g = self._h5()["masks"][mask_set]
             if not g["present"][k]:
                 return None
-            return np.asarray(g["mask"][k]) != 0
+            mask: Bool = np.asarray(g["mask"][k]) != 0
+            return mask
 
     def pose_sets(self) -> tuple[str, ...]:
         return self._groups("poses")
@@ -596,7 +597,9 @@ class _Guard:
     def __enter__(self) -> None:
         return None
 
-    def __exit__(self, exc_type: type | None, exc: BaseException | None, tb: object) -> bool:
+    def __exit__(
+        self, exc_type: type | None, exc: BaseException | None, tb: object
+    ) -> Literal[False]:
         if (
             exc is not None
             and isinstance(exc, _H5_ERRORS)

@@ -11,6 +11,7 @@ from __future__ import annotations
 import struct
 import zlib
 from pathlib import Path
+from typing import cast
 
 import cv2
 import numpy as np
@@ -56,7 +57,9 @@ def _encode(image: np.ndarray) -> bytes:
     return buf.tobytes()
 
 
-def _decode(data: bytes, path: Path, what: str, shape: tuple[int, int] | None = None) -> np.ndarray:
+def _decode(
+    data: bytes, path: str | Path, what: str, shape: tuple[int, int] | None = None
+) -> np.ndarray:
     if data[:8] != b"\x89PNG\r\n\x1a\n":
         raise DatasetFormatError(
             f"{what} file {located(path)} is not a PNG (it starts with {data[:8]!r})"
@@ -84,7 +87,7 @@ def _decode(data: bytes, path: Path, what: str, shape: tuple[int, int] | None = 
     return image
 
 
-def _checked_png_chunks(data: bytes, path: Path, what: str) -> bytes:
+def _checked_png_chunks(data: bytes, path: str | Path, what: str) -> bytes:
     """Walks the PNG chunks (length, type, CRC) up to IEND and returns the bytes up to it.
 
     OpenCV can spend seconds on some corrupt files (seen while fuzzing); a structural check with
@@ -121,7 +124,7 @@ def encode_png_rgb(rgb: NDArray[np.uint8]) -> bytes:
 
 
 def decode_png_rgb(
-    data: bytes, path: Path, *, shape: tuple[int, int] | None = None
+    data: bytes, path: str | Path, *, shape: tuple[int, int] | None = None
 ) -> NDArray[np.uint8]:
     """``(H, W, 3)`` uint8 RGB from PNG bytes (grey and RGBA are converted; 16-bit is refused).
 
@@ -142,7 +145,7 @@ def decode_png_rgb(
     else:
         image = np.ascontiguousarray(image[..., ::-1])
     _check_shape(image.shape[:2], shape, path, "rgb image")
-    return image
+    return cast(NDArray[np.uint8], image)  # uint8 checked above; cv2 types results as any dtype
 
 
 def encode_png_mask(mask: NDArray[np.bool_]) -> bytes:
@@ -151,7 +154,7 @@ def encode_png_mask(mask: NDArray[np.bool_]) -> bytes:
 
 
 def decode_png_mask(
-    data: bytes, path: Path, *, shape: tuple[int, int] | None = None
+    data: bytes, path: str | Path, *, shape: tuple[int, int] | None = None
 ) -> NDArray[np.bool_]:
     """``(H, W)`` bool mask from an 8-bit PNG: True where the value is > 1 (ROFT's threshold).
 
@@ -177,7 +180,7 @@ def encode_png_u16(image: NDArray[np.uint16]) -> bytes:
 
 
 def decode_png_u16(
-    data: bytes, path: Path, *, shape: tuple[int, int] | None = None
+    data: bytes, path: str | Path, *, shape: tuple[int, int] | None = None
 ) -> NDArray[np.uint16]:
     """``(H, W)`` uint16 image from a 16-bit single-channel PNG."""
     image = _decode(data, path, "16-bit depth image", shape)
@@ -190,7 +193,9 @@ def decode_png_u16(
     return image
 
 
-def _check_shape(got: tuple[int, ...], want: tuple[int, int] | None, path: Path, what: str) -> None:
+def _check_shape(
+    got: tuple[int, ...], want: tuple[int, int] | None, path: str | Path, what: str
+) -> None:
     if want is not None and tuple(got) != tuple(want):
         raise DatasetFormatError(
             f"{what} {located(path)} is {got[1]}x{got[0]} px; the camera is {want[1]}x{want[0]}"

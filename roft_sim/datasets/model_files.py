@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import re
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -147,7 +148,8 @@ def read_mesh_ply_mm(path: Path) -> tuple[F64, NDArray[np.int64]]:
         import trimesh
 
         try:
-            mesh = trimesh.load(path, force="mesh", process=False)
+            # force="mesh" returns a Trimesh (the stub types load as returning any Geometry)
+            mesh = cast(trimesh.Trimesh, trimesh.load(path, force="mesh", process=False))
         except Exception as e:  # trimesh raises many types on bad files
             raise DatasetFormatError(f"mesh {located(path)} could not be read: {e}") from None
         v, f = np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces, np.int64)

@@ -62,7 +62,7 @@ class SequenceReaderBase:
 
     def _cached_sets(self, kind: str, find: Callable[[], tuple[str, ...]]) -> tuple[str, ...]:
         """Set names, listed once (a dataset does not change while it is read)."""
-        cache = self.__dict__.setdefault("_set_cache", {})
+        cache: dict[str, tuple[str, ...]] = self.__dict__.setdefault("_set_cache", {})
         if kind not in cache:
             cache[kind] = find()
         return cache[kind]

@@ -122,7 +122,8 @@ class WriterSettings:
         dumps_json(self.metadata)  # fails early on NaN or non-serialisable values
 
     def to_json(self) -> dict[str, Any]:
-        return jsonable(self)
+        out: dict[str, Any] = jsonable(self)
+        return out
 
     def flow_encoding(self, set_name: str) -> str:
         """Encoding of a flow set (``float32`` unless configured)."""
@@ -215,7 +216,8 @@ class StreamingWriter(ABC):
 
     def _finished_n_frames(self) -> int | None:
         """Number of frames of the finished sequence on disk."""
-        return read_json(self._metadata_path(), "metadata").get("n_frames")
+        n_frames: int | None = read_json(self._metadata_path(), "metadata").get("n_frames")
+        return n_frames
 
     def _format_conventions(self) -> dict[str, str]:
         return {}
