@@ -24,7 +24,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from roft_sim.config_files import jsonable
 from roft_sim.datasets import open_sequence
@@ -93,7 +93,7 @@ class SweepCell:
         options: RunOptions,
     ) -> SweepCell:
         """A cell whose ``cell_id`` is derived from its configuration (:func:`make_cell_id`)."""
-        fields = {
+        fields: dict[str, Any] = {
             "label": label,
             "fault_label": fault_label,
             "parameter": parameter,
@@ -164,7 +164,7 @@ def run_cell(cell: SweepCell, cells_dir: str | Path) -> dict[str, Any]:
     cells_dir = Path(cells_dir)
     final = cells_dir / cell.cell_id
     if (final / CELL_FILE).is_file():
-        return read_json(final / CELL_FILE)
+        return cast(dict[str, Any], read_json(final / CELL_FILE))
     tmp = cells_dir / f".{cell.cell_id}.{os.getpid()}.tmp"
     shutil.rmtree(tmp, ignore_errors=True)
     t0 = time.perf_counter()
@@ -188,7 +188,7 @@ def run_cell(cell: SweepCell, cells_dir: str | Path) -> dict[str, Any]:
         shutil.rmtree(tmp, ignore_errors=True)
         if not (final / CELL_FILE).is_file():
             raise
-        return read_json(final / CELL_FILE)
+        return cast(dict[str, Any], read_json(final / CELL_FILE))
     return record
 
 

@@ -285,6 +285,13 @@ class Deliveries:
         "outlier",
         "corrupted",
     )
+    # (M,) one entry per delivery, in delivery order
+    detection_id: NDArray[np.int64]
+    true_capture_k: NDArray[np.int64]
+    reported_capture_k: NDArray[np.int64]
+    arrival_k: NDArray[np.int64]
+    outlier: NDArray[np.bool_]
+    corrupted: NDArray[np.bool_]
 
     def __init__(self, table: NDArray[np.int64], outlier: Any, corrupted: Any) -> None:
         for i, name in enumerate(_DELIVERY_COLUMNS):
@@ -347,7 +354,8 @@ def load_frame_errors(path: str | Path) -> SequenceMetrics:
         d = {name: z[name] for name in z.files}
     times = d.get("step_times_s")
     return SequenceMetrics(
-        **{name: float(d[name]) for name in _SCALARS},
+        # mypy checks each **dict against every field, float ones against the int fields too
+        **{name: float(d[name]) for name in _SCALARS},  # type: ignore[arg-type]
         **{name: int(d[name]) for name in _COUNTS},
         rmse_t_axes_cm=tuple(float(x) for x in d["rmse_t_axes_cm"]),  # type: ignore[arg-type]
         step_time=None if times is None else step_time_stats(times),

@@ -288,8 +288,11 @@ def check_findings(results: dict[str, RowMetrics]) -> list[Finding]:
         if not {"roft_no_velocity", "roft_no_pose"} <= set(rows) or len(rows) < 3:
             return f"worst two on {metric}", None
         order = sorted(
-            rows, key=lambda k: _all(results, k, metric), reverse=metric != "add_auc_pct"
-        )  # type: ignore[arg-type, return-value]
+            rows,
+            # rows keeps the keys whose _all is not None
+            key=lambda k: _all(results, k, metric),  # type: ignore[arg-type, return-value]
+            reverse=metric != "add_auc_pct",
+        )
         worst = set(order[:2])
         return f"worst two on {metric} are {sorted(worst)}", worst == {
             "roft_no_velocity",
@@ -303,7 +306,7 @@ def check_findings(results: dict[str, RowMetrics]) -> list[Finding]:
         metrics: Sequence[str],
     ) -> Finding:
         verdicts = [v for _, v in checks]
-        holds = None if None in verdicts else all(verdicts)  # type: ignore[arg-type]
+        holds = None if None in verdicts else all(verdicts)
         numbers = "; ".join(
             f"{k}: " + ", ".join(f"{m} {_fmt(_all(results, k, m))}" for m in metrics) for k in keys
         )

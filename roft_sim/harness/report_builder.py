@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from roft_sim.datasets import open_sequence
 from roft_sim.datasets.atomic_files import atomic_write_text
@@ -214,7 +215,7 @@ def _write_video(
         for k in range(n):
             obs = stream.observation(k)
             newer = newest_mask(shown_mask, obs.masks)
-            if newer is not shown_mask:
+            if newer is not None and newer is not shown_mask:
                 shown_mask, mask_text = newer, f"mask of frame {newer.capture_k} (arrived {k})"
             arrived = None
             if obs.poses:
@@ -236,7 +237,7 @@ def _write_video(
                     mask_text,
                 ),
             )
-            image = draw_overlay(frame)
+            image: NDArray[Any] = draw_overlay(frame)  # uint8; cv2.resize keeps the dtype
             if scale != 1.0:
                 import cv2
 

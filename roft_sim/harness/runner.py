@@ -214,7 +214,7 @@ def run_sequence(
     spec: TrackerSpec | None = None,
     object_model: ObjectModel | None = None,
     depth_renderer_factory: DepthRendererFactory | None = None,
-    progress: Callable[[int], None] | None = None,
+    progress: Callable[[int], object] | None = None,
 ) -> SequenceRun:
     """Runs ``options.tracker`` over ``sequence`` under ``options.faults``.
 

@@ -250,7 +250,8 @@ def apply_parameter(faults: FaultConfig, parameter: SweptParameter, value: float
             new = (*kept, FixedDelay(frames=int(value)))
         else:
             new = (*cfg.faults, BernoulliDropout(p=float(value)))
-        changes[stream] = dataclasses.replace(cfg, faults=new)
+        # mypy types replace() on a union of dataclasses with the meet of the field types (Never)
+        changes[stream] = dataclasses.replace(cfg, faults=new)  # type: ignore[arg-type]
     label = f"{faults.name}+{parameter.name}={value:g}"
     return dataclasses.replace(faults, name=label, **changes)
 
@@ -396,7 +397,11 @@ def _group_key(cell: SweepCell) -> tuple[str, str, float | None]:
 
 def summarize_cells(
     cells: Sequence[SweepCell], cells_dir: Path
-) -> tuple[list[dict[str, Any]], list[dict[str, Any]], dict[tuple, SequenceMetrics]]:
+) -> tuple[
+    list[dict[str, Any]],
+    list[dict[str, Any]],
+    dict[tuple[str, str, float | None], SequenceMetrics],
+]:
     """Summary rows (pooled per tracker x faults x value), timing rows, and the pooled metrics.
 
     The pooled "ALL" metrics concatenate the per-frame errors of every sequence and seed of a
@@ -437,7 +442,9 @@ def summarize_cells(
     return rows, timing, pooled
 
 
-def _cell_rows(cells: Sequence[SweepCell], records: dict[str, dict[str, Any]]) -> list[dict]:
+def _cell_rows(
+    cells: Sequence[SweepCell], records: dict[str, dict[str, Any]]
+) -> list[dict[str, Any]]:
     rows = []
     for c in cells:
         metrics = records[c.cell_id].get("metrics", {})
