@@ -19,7 +19,9 @@ import os
 import pkgutil
 import select
 import sys
+import types
 from collections.abc import Sequence
+from typing import TextIO
 
 from roft_sim import __version__
 from roft_sim.errors import ConfigError, RoftSimError
@@ -31,7 +33,7 @@ _log = logging.getLogger("roft_sim")
 EXIT_OK, EXIT_RUNTIME, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
 
 
-def _verb_modules() -> list:
+def _verb_modules() -> list[types.ModuleType]:
     modules = []
     for info in pkgutil.iter_modules(__path__):
         module = importlib.import_module(f"{__name__}.{info.name}")
@@ -58,15 +60,15 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-class _CurrentStderrHandler(logging.StreamHandler):
+class _CurrentStderrHandler(logging.StreamHandler[TextIO]):
     """Writes to whatever ``sys.stderr`` is when a record is emitted.
 
     A plain StreamHandler keeps the stream it was created with; when ``main`` runs in-process
     (tests, notebooks) that stream may be a capture buffer closed long before the next record.
     """
 
-    @property  # type: ignore[override]
-    def stream(self):
+    @property
+    def stream(self) -> TextIO:
         return sys.stderr
 
     @stream.setter

@@ -17,6 +17,7 @@ import json
 import os
 import sys
 from pathlib import Path
+from typing import Any
 
 from roft_sim.assets import (
     OFFICIAL_YCB_BASE_URL,
@@ -60,7 +61,7 @@ def cache_dir_from_args(args: argparse.Namespace) -> Path:
     return args.cache if args.cache is not None else default_cache_dir(os.environ)
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Adds ``assets list`` and ``assets install``."""
     parser = subparsers.add_parser(
         "assets",
@@ -106,7 +107,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def _run_list(args: argparse.Namespace) -> int:
     assets_dir, cache_dir = assets_dir_from_args(args), cache_dir_from_args(args)
-    rows = []
+    rows: list[dict[str, Any]] = []
     for info in list_objects():
         path = find_ycb_mesh(info.name, assets_dir=assets_dir, cache_dir=cache_dir)
         rows.append(

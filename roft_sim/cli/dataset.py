@@ -36,7 +36,7 @@ ORDER = 30
 _log = logging.getLogger(__name__)
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Adds ``dataset check``, ``dataset info`` and ``dataset convert``."""
     parser = subparsers.add_parser(
         "dataset",
@@ -100,7 +100,7 @@ def read_every_frame(path: Path, fmt: str | None = None) -> list[str]:
             *((f"mask {n}", lambda k=k, n=n: seq.mask(k, n)) for n in seq.mask_sets()),
         ):
             try:
-                read()
+                read()  # type: ignore[no-untyped-call]  # lambdas with defaults are untyped
             except DatasetFormatError as e:
                 problems.append(f"frame {k} {what}: {e}")
     return problems

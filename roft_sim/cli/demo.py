@@ -22,7 +22,7 @@ ORDER = 1
 PAPER_FAULTS = "paper faults (pose and mask networks at 5 fps, results 6 frames late)"
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Adds the ``demo`` verb."""
     parser = subparsers.add_parser(
         "demo",

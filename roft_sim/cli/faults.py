@@ -20,7 +20,7 @@ ORDER = 40
 __all__ = ["register"]
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     parser = subparsers.add_parser(
         "faults",
         help="list fault presets or show a preset's timeline",

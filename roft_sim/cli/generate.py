@@ -42,7 +42,7 @@ def _preset_help() -> str:
     return "; ".join(f"{p.name}: {p.description}" for p in PRESETS.values())
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Adds the ``generate`` verb."""
     parser = subparsers.add_parser(
         "generate",

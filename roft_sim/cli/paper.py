@@ -15,6 +15,7 @@ import os
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 from roft_sim.cli.assets import assets_dir_from_args
 from roft_sim.cli.output_dirs import prepare_output_dir
@@ -25,7 +26,7 @@ __all__ = ["register"]
 ORDER = 23
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Adds the ``paper`` verb."""
     parser = subparsers.add_parser(
         "paper",
@@ -91,7 +92,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.set_defaults(func=_run)
 
 
-def _generate(args: argparse.Namespace, out: Path, progress: bool) -> tuple[Path, dict]:
+def _generate(args: argparse.Namespace, out: Path, progress: bool) -> tuple[Path, dict[str, Any]]:
     from roft_sim.assets import default_cache_dir
     from roft_sim.generation import (
         PRESETS,
@@ -231,7 +232,7 @@ def _run(args: argparse.Namespace) -> int:
     return 0
 
 
-def vars_for_json(args: argparse.Namespace) -> dict:
+def vars_for_json(args: argparse.Namespace) -> dict[str, Any]:
     """The parsed arguments as JSON-ready values."""
     return {
         k: (str(v) if isinstance(v, Path) else v)

@@ -19,7 +19,7 @@ ORDER = 30
 _log = logging.getLogger(__name__)
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Adds ``preview``."""
     parser = subparsers.add_parser(
         "preview",

@@ -15,7 +15,7 @@ __all__ = ["register"]
 ORDER = 22
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Adds the ``report`` verb."""
     parser = subparsers.add_parser(
         "report",

@@ -84,7 +84,7 @@ def add_input_arguments(parser: argparse.ArgumentParser, *, sweep: bool = False)
     )
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Adds the ``run`` verb."""
     parser = subparsers.add_parser(
         "run",

@@ -30,7 +30,7 @@ _GRID_FLAGS = ("datasets", "trackers", "faults", "param", "seeds")
 _INPUT_FLAGS = ("flow", "poses", "masks", "init", "invalid", "no_rgb")
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Adds the ``sweep`` verb."""
     parser = subparsers.add_parser(
         "sweep",

@@ -24,7 +24,7 @@ ORDER = 60
 __all__ = ["register", "toml_from_dataclass"]
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     parser = subparsers.add_parser(
         "trackers",
         help="list the registered tracker plugins",

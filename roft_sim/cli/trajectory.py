@@ -121,7 +121,7 @@ def _add_source_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Adds ``trajectory stats`` and ``trajectory export``."""
     parser = subparsers.add_parser(
         "trajectory",
