@@ -19,7 +19,7 @@ explicit ``rng``; they never modify their input, and 0 stays "no measurement". M
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
 import cv2
 import numpy as np
@@ -245,7 +245,7 @@ def kinect_azure_depth_noise(
     sigma = kinect_azure_depth_sigma_m(
         shifted, base_sigma_m=base_sigma_m, sigma_slope=sigma_slope, sigma_start_m=sigma_start_m
     )
-    noisy = shifted.astype(np.float64) + sigma * rng.standard_normal(depth.shape)
+    noisy: NDArray[Any] = shifted.astype(np.float64) + sigma * rng.standard_normal(depth.shape)
     noisy = np.where(valid & (noisy > 0), noisy, 0.0).astype(np.float32)
     kernel = cv2.getStructuringElement(cv2.MORPH_RECT, (3, 3))
     low = cv2.erode(np.where(noisy > 0, noisy, np.float32(np.inf)), kernel)

@@ -24,7 +24,7 @@ which other pairs were asked for, or in which order.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol, runtime_checkable
+from typing import Any, Protocol, cast, runtime_checkable
 
 import cv2
 import numpy as np
@@ -87,9 +87,11 @@ def frame_rng(seed: int, *keys: int) -> np.random.Generator:
 class FlowSource(Protocol):
     """Flow between two frames of a sequence."""
 
-    name: str
-    """Short label; for sources built by :func:`make_flow_source`, the spec string (custom
-    configs are not part of it: record them separately)."""
+    @property
+    def name(self) -> str:
+        """Short label; for sources built by :func:`make_flow_source`, the spec string (custom
+        configs are not part of it: record them separately)."""
+        ...
 
     def flow(self, sequence: Sequence, from_k: int, to_k: int) -> FlowField | None:
         """Flow mapping pixels of frame ``from_k`` to frame ``to_k``, or None when this source
@@ -251,8 +253,8 @@ def _correlated_normal(rng: np.random.Generator, shape: tuple[int, int], sigma_p
     ksize = 2 * int(np.ceil(3.0 * sigma_px)) + 1
     k1 = cv2.getGaussianKernel(ksize, sigma_px, cv2.CV_64F)[:, 0]
     gain = float(np.sum(k1**2))  # std of the blurred field = gain (separable 2-D kernel)
-    blurred = cv2.GaussianBlur(
-        white, (ksize, ksize), sigma_px, sigma_px, borderType=cv2.BORDER_REFLECT
+    blurred: NDArray[Any] = cv2.GaussianBlur(
+        white, (ksize, ksize), sigma_px, sigmaY=sigma_px, borderType=cv2.BORDER_REFLECT
     )
     return blurred / gain
 
@@ -347,8 +349,8 @@ class DisFlowSource:
             cv2.cvtColor(np.ascontiguousarray(sequence.rgb(k)), cv2.COLOR_RGB2GRAY)
             for k in (from_k, to_k)
         ]
-        dis = cv2.DISOpticalFlow_create(DIS_PRESETS[self.preset])
-        flow = dis.calc(grey[0], grey[1], None)
+        dis = cv2.DISOpticalFlow.create(DIS_PRESETS[self.preset])
+        flow = dis.calc(grey[0], grey[1], None)  # type: ignore[call-overload]  # None: allocate
         return FlowField(flow_px=flow.astype(np.float32), from_k=from_k, to_k=to_k, grid_px=1)
 
 
@@ -395,7 +397,7 @@ class NvofLikeFlowSource:
         dense = np.full((hg * g, wg * g, 2), np.nan, dtype=np.float64)
         dense[:h, :w] = inner.dense(h, w)
         blocks = dense.reshape(hg, g, wg, g, 2)
-        ok = np.isfinite(blocks).all(axis=4)
+        ok = cast(NDArray[np.bool_], np.isfinite(blocks).all(axis=4))  # (hg, g, wg, g) array
         count = ok.sum(axis=(1, 3))
         total = np.where(ok[..., None], blocks, 0.0).sum(axis=(1, 3))
         valid = count > 0

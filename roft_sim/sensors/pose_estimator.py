@@ -210,7 +210,8 @@ def _outlier_episodes(
 
 def _random_unit(rng: np.random.Generator, n: int) -> F64:
     v = rng.standard_normal((n, 3))
-    return v / np.linalg.norm(v, axis=1, keepdims=True)
+    unit: F64 = v / np.linalg.norm(v, axis=1, keepdims=True)
+    return unit
 
 
 def sample_pose_detections(
