@@ -42,9 +42,10 @@ from roft_sim.harness.run_dataset import METRICS_FILE, RUN_FILE
 from roft_sim.harness.runner import make_observation_stream
 from roft_sim.metrics import SequenceMetrics, accuracy_curve
 from roft_sim.records import Estimate, MaskDetection, PoseTrack
-from roft_sim.report.overlay import OverlayFrame, VideoWriter, draw_overlay, silhouette_mask
+from roft_sim.report.overlay import OverlayFrame, draw_overlay, silhouette_mask
 from roft_sim.report.plotting import Panel, Series, line_figure, save_figure
 from roft_sim.report.tables import METRIC_COLUMNS, Column, markdown_table
+from roft_sim.report.video import VideoWriter
 
 __all__ = ["ReportOptions", "ReportResult", "build_report", "newest_mask", "options_from_record"]
 
