@@ -25,6 +25,7 @@ from roft_sim.config_files import jsonable
 from roft_sim.datasets import open_sequence
 from roft_sim.datasets.atomic_files import atomic_write_text
 from roft_sim.errors import ConfigError
+from roft_sim.executors import Executor
 from roft_sim.faults import load_faults
 from roft_sim.harness.cells import (
     CELLS_DIR,
@@ -32,7 +33,6 @@ from roft_sim.harness.cells import (
     execute_cells,
     load_cell_metrics,
 )
-from roft_sim.harness.executors import Executor
 from roft_sim.harness.inputs import check_inputs
 from roft_sim.harness.options import RunOptions
 from roft_sim.harness.outputs import write_json
