@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import io
 import logging
 import subprocess
@@ -9,7 +10,7 @@ import sys
 
 import pytest
 
-from roft_sim.cli import main
+from roft_sim.cli import VERBS, build_parser, main
 
 
 def test_help_and_no_verb_exit_codes(capsys):
@@ -17,6 +18,13 @@ def test_help_and_no_verb_exit_codes(capsys):
     assert "trackers" in capsys.readouterr().out
     assert main([]) == 2
     assert main(["no-such-verb"]) == 2
+
+
+def test_the_verb_table_names_every_sub_parser_in_help_order():
+    parser = build_parser()
+    (sub,) = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    assert list(sub.choices) == [name for name, _ in VERBS]
+    assert len(VERBS) == len({name for name, _ in VERBS}) >= 12
 
 
 def test_logging_follows_the_current_stderr(monkeypatch):

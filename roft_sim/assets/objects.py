@@ -18,7 +18,6 @@ import hashlib
 import json
 import logging
 import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
@@ -41,6 +40,8 @@ from roft_sim.assets.meshes import (
 from roft_sim.assets.procedural import AtlasMesh, projected_atlas, stand_in_mesh
 from roft_sim.assets.registry import ObjectInfo, UnknownObjectError, object_registry
 from roft_sim.assets.textures import TEXTURE_GENERATOR_VERSION, procedural_texture
+from roft_sim.datasets.atomic_files import atomic_write_bytes
+from roft_sim.datasets.image_files import encode_png_rgb
 from roft_sim.errors import AssetNotFoundError, ConfigError, DatasetFormatError, located
 from roft_sim.records import ObjectModel
 
@@ -306,19 +307,6 @@ def _texture_cache_path(
     )
 
 
-def _write_png_atomically(path: Path, image_rgb: NDArray[np.uint8]) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}-", suffix=".png", dir=path.parent)
-    os.close(fd)
-    try:
-        if not cv2.imwrite(tmp, np.ascontiguousarray(image_rgb[:, :, ::-1])):
-            raise OSError(f"OpenCV could not write {tmp}")
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-
-
 def _atlas_texture(
     atlas: AtlasMesh,
     *,
@@ -358,7 +346,7 @@ def _atlas_texture(
     )
     if path is not None:
         try:
-            _write_png_atomically(path, texture)
+            atomic_write_bytes(path, encode_png_rgb(texture))
         except OSError as e:  # a read-only cache must not stop the simulation
             _log.warning("could not cache the procedural texture at %s: %s", path, e)
     return texture

@@ -1,10 +1,11 @@
 """The ``roft-sim`` command line: ``main(argv) -> exit code``.
 
 Each verb lives in its own module of this package and exposes ``register(subparsers)``, which adds
-a sub-parser whose ``func(args) -> int`` runs the verb; modules are found automatically and
-listed in the order of their ``ORDER`` constant. The CLI stays thin: parse, build the config,
-call the library. Environment variables are read here and nowhere else in the package
-(``ROFT_SIM_ASSETS``, ``ROFT_SIM_CACHE``; ``MUJOCO_GL`` is MuJoCo's own).
+a sub-parser whose ``func(args) -> int`` runs the verb. :data:`VERBS` below lists every verb, one
+line each, in the order ``roft-sim --help`` shows them: a new verb is one import and one line.
+The CLI stays thin: parse, build the config, call the library. Environment variables are read here
+and nowhere else in the package (``ROFT_SIM_ASSETS``, ``ROFT_SIM_CACHE``; ``MUJOCO_GL`` is
+MuJoCo's own).
 
 Exit codes: 0 success, 1 runtime error (or stdout closed early, as by ``| head``), 2 usage or
 configuration error, 130 interrupted.
@@ -13,33 +14,54 @@ configuration error, 130 interrupted.
 from __future__ import annotations
 
 import argparse
-import importlib
 import logging
 import os
-import pkgutil
 import select
 import sys
-import types
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import TextIO
 
 from roft_sim import __version__
+from roft_sim.cli import (
+    assets,
+    dataset,
+    demo,
+    faults,
+    generate,
+    paper,
+    preview,
+    report,
+    run,
+    sweep,
+    trackers,
+    trajectory,
+)
 from roft_sim.errors import ConfigError, RoftSimError
 
-__all__ = ["main", "build_parser"]
+__all__ = ["main", "build_parser", "VERBS"]
 
 _log = logging.getLogger("roft_sim")
 
 EXIT_OK, EXIT_RUNTIME, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
 
 
-def _verb_modules() -> list[types.ModuleType]:
-    modules = []
-    for info in pkgutil.iter_modules(__path__):
-        module = importlib.import_module(f"{__name__}.{info.name}")
-        if hasattr(module, "register"):
-            modules.append(module)
-    return sorted(modules, key=lambda m: (getattr(m, "ORDER", 100), m.__name__))
+RegisterVerb = Callable[["argparse._SubParsersAction[argparse.ArgumentParser]"], None]
+
+VERBS: tuple[tuple[str, RegisterVerb], ...] = (
+    ("demo", demo.register),
+    ("generate", generate.register),
+    ("trajectory", trajectory.register),
+    ("assets", assets.register),
+    ("run", run.register),
+    ("sweep", sweep.register),
+    ("report", report.register),
+    ("paper", paper.register),
+    ("dataset", dataset.register),
+    ("preview", preview.register),
+    ("faults", faults.register),
+    ("trackers", trackers.register),
+)
+"""Every ``roft-sim`` verb: its name and the function that adds its sub-parser, in help order."""
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -55,8 +77,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("-q", "--quiet", action="store_true", help="only warnings and errors")
     subparsers = parser.add_subparsers(dest="verb", metavar="VERB")
-    for module in _verb_modules():
-        module.register(subparsers)
+    for _, register in VERBS:
+        register(subparsers)
     return parser
 
 

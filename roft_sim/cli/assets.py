@@ -30,8 +30,6 @@ from roft_sim.errors import ConfigError
 
 __all__ = ["register"]
 
-ORDER = 20
-
 
 def assets_dir_from_args(args: argparse.Namespace) -> Path | None:
     """The folder of real YCB meshes: ``--assets``, else ``$ROFT_SIM_ASSETS``, else None.

@@ -31,7 +31,6 @@ from roft_sim.errors import ConfigError, DatasetFormatError
 
 __all__ = ["register", "read_every_frame", "sequence_info"]
 
-ORDER = 30
 
 _log = logging.getLogger(__name__)
 

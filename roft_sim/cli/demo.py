@@ -17,7 +17,6 @@ from roft_sim.cli.output_dirs import prepare_output_dir
 
 __all__ = ["register"]
 
-ORDER = 1
 
 PAPER_FAULTS = "paper faults (pose and mask networks at 5 fps, results 6 frames late)"
 

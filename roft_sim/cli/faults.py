@@ -15,8 +15,6 @@ import json
 from roft_sim.config_files import jsonable
 from roft_sim.errors import ConfigError
 
-ORDER = 40
-
 __all__ = ["register"]
 
 

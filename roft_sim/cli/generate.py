@@ -29,7 +29,6 @@ from roft_sim.errors import ConfigError
 
 __all__ = ["register", "add_executor_arguments", "executor_from_args", "shard_from_args"]
 
-ORDER = 10
 
 _log = logging.getLogger(__name__)
 

@@ -23,8 +23,6 @@ from roft_sim.errors import ConfigError, DatasetFormatError
 
 __all__ = ["register"]
 
-ORDER = 23
-
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Adds the ``paper`` verb."""
@@ -142,7 +140,7 @@ def _generate(args: argparse.Namespace, out: Path, progress: bool) -> tuple[Path
 
 
 def _run(args: argparse.Namespace) -> int:
-    from roft_sim.harness.executors import make_executor
+    from roft_sim.executors import make_executor
     from roft_sim.harness.paper import paper_rows, plan_paper, run_paper
     from roft_sim.harness.run_dataset import find_sequences
 

@@ -14,7 +14,6 @@ from roft_sim.errors import ConfigError
 
 __all__ = ["register"]
 
-ORDER = 30
 
 _log = logging.getLogger(__name__)
 

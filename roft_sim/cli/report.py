@@ -12,8 +12,6 @@ from roft_sim.errors import ConfigError
 
 __all__ = ["register"]
 
-ORDER = 22
-
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Adds the ``report`` verb."""

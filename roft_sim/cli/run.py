@@ -26,8 +26,6 @@ __all__ = [
     "print_metrics_table",
 ]
 
-ORDER = 20
-
 
 def add_input_arguments(parser: argparse.ArgumentParser, *, sweep: bool = False) -> None:
     """The options shared by ``run`` and ``sweep``: faults, inputs, initial condition, seed

@@ -24,7 +24,6 @@ from roft_sim.errors import ConfigError, DatasetFormatError, PluginError
 
 __all__ = ["register"]
 
-ORDER = 21
 
 _GRID_FLAGS = ("datasets", "trackers", "faults", "param", "seeds")
 _INPUT_FLAGS = ("flow", "poses", "masks", "init", "invalid", "no_rgb")

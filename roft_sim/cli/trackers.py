@@ -19,8 +19,6 @@ from typing import Any
 
 from roft_sim.config_files import jsonable
 
-ORDER = 60
-
 __all__ = ["register", "toml_from_dataclass"]
 
 

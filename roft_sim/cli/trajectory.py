@@ -39,7 +39,6 @@ from roft_sim.trajectories import (
 
 __all__ = ["register", "format_speed_table", "trajectory_config_from_args"]
 
-ORDER = 10
 
 _log = logging.getLogger(__name__)
 

@@ -17,6 +17,8 @@ from typing import Any, Protocol, TypeVar, runtime_checkable
 from roft_sim.errors import RoftSimError
 
 __all__ = [
+    "unit_result",
+    "drain_progress",
     "Executor",
     "WorkerSetup",
     "WorkUnitError",
@@ -59,6 +61,44 @@ def unit_failed(unit: Any, cause: BaseException) -> WorkUnitError:
     return WorkUnitError(
         f"work unit {unit!r} failed: {type(cause).__name__}: {cause}", unit=unit, cause=cause
     )
+
+
+def unit_result(
+    unit: U,
+    get_result: Callable[[], R],
+    *,
+    worker_death: tuple[type[BaseException], ...] = (),
+    death_detail: str = "",
+) -> R:
+    """The one dispatch rule of every executor: ``get_result()`` (the unit's function, or its
+    future's result); a :class:`RoftSimError` passes through as it is (a user-facing error), an
+    exception of a ``worker_death`` type becomes :func:`worker_died` (with ``death_detail``), any
+    other exception :func:`unit_failed`, naming the unit."""
+    try:
+        return get_result()
+    except worker_death:
+        raise worker_died(unit, death_detail) from None
+    except RoftSimError:
+        raise
+    except Exception as e:
+        raise unit_failed(unit, e) from e
+
+
+def drain_progress(
+    get_nowait: Callable[[], int],
+    empty: type[BaseException],
+    on_progress: Callable[[int], None] | None,
+) -> None:
+    """Hands every progress count waiting in a queue (``get_nowait`` raising ``empty`` when
+    there is none) to ``on_progress``; nothing when there is no callback."""
+    if on_progress is None:
+        return
+    while True:
+        try:
+            count = get_nowait()
+        except empty:
+            return
+        on_progress(count)
 
 
 def worker_died(unit: Any, detail: str = "") -> WorkUnitError:

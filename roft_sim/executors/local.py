@@ -10,13 +10,13 @@ from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wai
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any, Literal, TypeVar
 
-from roft_sim.errors import ConfigError, RoftSimError
+from roft_sim.errors import ConfigError
 from roft_sim.executors.base import (
     WorkerSetup,
+    drain_progress,
     limit_worker_threads,
     progress_reporter,
-    unit_failed,
-    worker_died,
+    unit_result,
 )
 
 __all__ = ["LocalProcessExecutor"]
@@ -104,11 +104,8 @@ class LocalProcessExecutor:
         running: dict[Future[R], U] = {}
 
         def drain() -> None:
-            if progress is None or on_progress is None:
-                return
-            with contextlib.suppress(queue.Empty):
-                while True:
-                    on_progress(progress.get_nowait())
+            if progress is not None:
+                drain_progress(progress.get_nowait, queue.Empty, on_progress)
 
         pool = ProcessPoolExecutor(
             max_workers=min(self._workers, len(units)),
@@ -129,14 +126,12 @@ class LocalProcessExecutor:
                 drain()
                 for future in done:
                     unit = running.pop(future)
-                    try:
-                        result = future.result()
-                    except BrokenProcessPool:
-                        raise worker_died(unit, _DIED_DETAIL) from None
-                    except RoftSimError:
-                        raise
-                    except Exception as e:
-                        raise unit_failed(unit, e) from e
+                    result = unit_result(
+                        unit,
+                        future.result,
+                        worker_death=(BrokenProcessPool,),
+                        death_detail=_DIED_DETAIL,
+                    )
                     yield unit, result
             # Workers flush their progress queue when they exit: count everything reported.
             pool.shutdown(wait=True)

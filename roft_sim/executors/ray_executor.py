@@ -15,17 +15,19 @@ on its node, so relative paths mean the same thing as on the driver.
 from __future__ import annotations
 
 import contextlib
+import functools
 import importlib.util
 import os
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from typing import Any, TypeVar
 
-from roft_sim.errors import ConfigError, RoftSimError
+from roft_sim.errors import ConfigError
 from roft_sim.executors.base import (
     WorkerSetup,
+    drain_progress,
     limit_worker_threads,
     progress_reporter,
-    unit_failed,
+    unit_result,
     worker_died,
 )
 
@@ -196,13 +198,15 @@ class RayExecutor:
             progress = Queue(actor_options={"num_cpus": 0})
 
         def drain() -> None:
-            if progress is None or on_progress is None:
-                return
-            while True:
-                try:
-                    on_progress(progress.get_nowait())
-                except Empty:
-                    return
+            if progress is not None:
+                drain_progress(progress.get_nowait, Empty, on_progress)
+
+        def unwrapped_result(ref: Any) -> Any:
+            """``ray.get(ref)``, with a task's exception raised as itself, not wrapped."""
+            try:
+                return ray.get(ref)
+            except RayTaskError as e:
+                raise (e.cause if isinstance(e.cause, BaseException) else e) from None
 
         options: dict[str, Any] = {
             "num_cpus": 1,
@@ -235,12 +239,7 @@ class RayExecutor:
                     unit, i = running.pop(ref)
                     load[i] -= 1
                     try:
-                        result = ray.get(ref)
-                    except RayTaskError as e:
-                        cause = e.cause if isinstance(e.cause, BaseException) else e
-                        if isinstance(cause, RoftSimError):
-                            raise cause from None
-                        raise unit_failed(unit, cause) from None
+                        result = unit_result(unit, functools.partial(unwrapped_result, ref))
                     except (RayActorError, WorkerCrashedError) as e:
                         first = (str(e).strip().splitlines() or [""])[0][:300]
                         detail = f"; Ray: {type(e).__name__}: {first}"

@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Iterator, Sequence
 from typing import TypeVar
 
-from roft_sim.errors import RoftSimError
-from roft_sim.executors.base import WorkerSetup, progress_reporter, unit_failed
+from roft_sim.executors.base import WorkerSetup, progress_reporter, unit_result
 
 __all__ = ["SerialExecutor"]
 
@@ -39,13 +39,7 @@ class SerialExecutor:
             if setup is not None and setup.initializer is not None:
                 setup.initializer(*setup.initargs)
             for unit in units:
-                try:
-                    result = fn(unit)
-                except RoftSimError:
-                    raise
-                except Exception as e:
-                    raise unit_failed(unit, e) from e
-                yield unit, result
+                yield unit, unit_result(unit, functools.partial(fn, unit))
         finally:
             try:
                 if setup is not None and setup.teardown is not None:

@@ -18,7 +18,6 @@ from roft_sim.faults.config import (
     CameraFault,
     CameraFaults,
     FaultConfig,
-    FaultPreset,
     FirstResult,
     FlowFault,
     FlowFaults,
@@ -69,7 +68,6 @@ from roft_sim.faults.timing import (
 __all__ = [
     # configuration
     "FaultConfig",
-    "FaultPreset",
     "PoseStreamFaults",
     "MaskStreamFaults",
     "CameraFaults",

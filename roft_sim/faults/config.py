@@ -64,7 +64,6 @@ __all__ = [
     "CameraFaults",
     "FlowFaults",
     "FaultConfig",
-    "FaultPreset",
     "FirstResult",
     "load_faults",
     "list_fault_presets",
@@ -250,10 +249,6 @@ class FaultConfig:
         for where, fault in self.iter_faults():
             lines.append(f"{where}: {fault.describe()}")
         return lines or ["no faults: every frame's detections arrive at their own frame"]
-
-
-FaultPreset = FaultConfig
-"""Alias: a preset is a :class:`FaultConfig` loaded from ``scenarios/faults/``."""
 
 
 def _merge_first_result(where: str, values: list[str]) -> str:

@@ -25,6 +25,7 @@ from roft_sim.config_files import jsonable
 from roft_sim.datasets import open_sequence
 from roft_sim.datasets.atomic_files import atomic_write_text
 from roft_sim.errors import ConfigError
+from roft_sim.executors import Executor
 from roft_sim.faults import load_faults
 from roft_sim.harness.cells import (
     CELLS_DIR,
@@ -32,13 +33,13 @@ from roft_sim.harness.cells import (
     execute_cells,
     load_cell_metrics,
 )
-from roft_sim.harness.executors import Executor
 from roft_sim.harness.inputs import check_inputs
 from roft_sim.harness.options import RunOptions
 from roft_sim.harness.outputs import write_json
 from roft_sim.harness.run_dataset import find_sequences
 from roft_sim.metrics import SequenceMetrics, concatenate_metrics
 from roft_sim.report.paper_reference import ALL, PaperTables, paper_tables
+from roft_sim.report.plotting import bar_figure, save_figure
 from roft_sim.report.tables import Column, csv_table, latex_table, markdown_table
 from roft_sim.trackers import discover_trackers, get_tracker_spec, load_tracker_config
 
@@ -448,6 +449,88 @@ def _table4(
     return columns, table_rows
 
 
+# ------------------------------------------------------------------------------- figures
+BarPanel = tuple[str, str, dict[str, list[float | None]]]
+
+
+def _bar_panel(
+    title: str,
+    y_label: str,
+    columns: Sequence[Column],
+    rows: Sequence[dict[str, Any]],
+    keys: Sequence[str],
+    labels: Sequence[str],
+) -> BarPanel:
+    """One panel of a table figure: the table columns ``keys`` as bar groups named ``labels``."""
+    titles = {c.key: c.header for c in columns}
+    groups = {
+        label: [row.get(key) for row in rows] for key, label in zip(keys, labels, strict=True)
+    }
+    missing = [k for k in keys if k not in titles]
+    if missing:
+        raise ValueError(f"table has no column {missing[0]!r}; its columns: {', '.join(titles)}")
+    return title, y_label, groups
+
+
+def _write_paper_figures(
+    out: Path,
+    table1: dict[str, tuple[list[Column], list[dict[str, Any]]]],
+    table2: tuple[list[Column], list[dict[str, Any]]],
+    table4: tuple[list[Column], list[dict[str, Any]]],
+) -> list[Path]:
+    """``table1.png``, ``table2.png``, ``table4.png``: the tables as grouped bar charts, the
+    simulation solid and the paper's published numbers hatched."""
+    written = []
+    # Table I: one panel per metric, objects on the x axis, one bar per method
+    panels1: list[BarPanel] = []
+    entries: list[str] = []
+    paper_labels: list[str] = []
+    for (title, (columns, rows)), y_label in zip(
+        table1.items(), ("ADD-AUC [%]", "RMSE e_t [cm]", "RMSE e_a [deg]"), strict=True
+    ):
+        keys = [c.key for c in columns[1:]]
+        labels = [c.header for c in columns[1:]]
+        paper_labels = [c.header for c in columns[1:] if c.key.startswith("paper:")]
+        entries = [str(r["entry"]) for r in rows]
+        panels1.append(_bar_panel(title, y_label, columns, rows, keys, labels))
+    figure = bar_figure(
+        entries, panels1, title="Table I: pose tracking (simulation vs paper)", hatched=paper_labels
+    )
+    written.append(save_figure(figure, out / "table1.png"))
+    # Table II: e_v and e_w panels, ROFT with and without mask sync, simulation and paper
+    columns, rows = table2
+    panels2: list[BarPanel] = []
+    for metric, y_label in (("rmse_v_cmps", "RMSE e_v [cm/s]"), ("rmse_w_dps", "RMSE e_w [deg/s]")):
+        chosen = [c for c in columns if c.key.endswith(f":{metric}")]
+        labels = [
+            c.header.split(" ", 2)[-1] for c in chosen
+        ]  # "e_v cm/s ROFT (sim)" -> "ROFT (sim)"
+        panels2.append(_bar_panel(y_label, y_label, columns, rows, [c.key for c in chosen], labels))
+    figure = bar_figure(
+        [str(r["entry"]) for r in rows],
+        panels2,
+        title="Table II: velocity tracking (simulation vs paper)",
+        hatched=[c.header.split(" ", 2)[-1] for c in columns if c.key.startswith("paper:")],
+    )
+    written.append(save_figure(figure, out / "table2.png"))
+    # Table IV: variants on the x axis, simulation and paper per metric
+    columns, rows = table4
+    panels4 = [
+        _bar_panel(
+            y_label, y_label, columns, rows, [f"sim_{k}", f"paper_{k}"], ["simulation", "paper"]
+        )
+        for k, y_label in (("add", "ADD-AUC [%]"), ("t", "RMSE e_t [cm]"), ("a", "RMSE e_a [deg]"))
+    ]
+    figure = bar_figure(
+        [str(r["variant"]) for r in rows],
+        panels4,
+        title="Table IV: ablation, ALL (simulation vs paper)",
+        hatched=["paper"],
+    )
+    written.append(save_figure(figure, out / "table4.png"))
+    return written
+
+
 @dataclass(frozen=True, slots=True, kw_only=True)
 class PaperResult:
     """What :func:`run_paper` produced."""
@@ -469,8 +552,9 @@ def write_paper_tables(
     *,
     header: Sequence[str] = (),
 ) -> tuple[Path, list[Finding]]:
-    """Writes ``tables.md``, ``table1_*.csv``, ``table2.csv``, ``table4.csv``, ``tables.tex``
-    and returns the path of ``tables.md`` and the findings."""
+    """Writes ``tables.md``, ``table1_*.csv``, ``table2.csv``, ``table4.csv``, ``tables.tex``,
+    the tables as figures (``table1.png``, ``table2.png``, ``table4.png``) and returns the path of
+    ``tables.md`` and the findings."""
     paper = paper_tables()
     objects_run = sorted({e for r in results.values() for e in r if e != ALL})
     entries = [o for o in paper.objects if o in objects_run]
@@ -479,20 +563,27 @@ def write_paper_tables(
     md = [*header]
     tex = []
     md += ["## Table I: pose tracking (simulation vs paper)", ""]
-    for i, (title, (cols, trs)) in enumerate(_table1(results, rows, paper, entries).items()):
+    table1 = _table1(results, rows, paper, entries)
+    table2 = _table2(results, paper, entries)
+    table4 = _table4(results, rows, paper)
+    for i, (title, (cols, trs)) in enumerate(table1.items()):
         md += [f"### {title}", "", markdown_table(cols, trs)]
         atomic_write_text(
             out / f"table1_{['add_auc', 'rmse_t', 'rmse_a'][i]}.csv", csv_table(cols, trs)
         )
         tex.append(latex_table(cols, trs, caption=f"Table I in simulation: {title}"))
-    cols, trs = _table2(results, paper, entries)
+    md.append("![Table I](table1.png)\n")
+    cols, trs = table2
     md += ["## Table II: velocity tracking (simulation vs paper)", "", markdown_table(cols, trs)]
     atomic_write_text(out / "table2.csv", csv_table(cols, trs))
     tex.append(latex_table(cols, trs, caption="Table II in simulation: velocity RMSE"))
-    cols, trs = _table4(results, rows, paper)
+    md.append("![Table II](table2.png)\n")
+    cols, trs = table4
     md += ["## Table IV: ablation, ALL (simulation vs paper)", "", markdown_table(cols, trs)]
     atomic_write_text(out / "table4.csv", csv_table(cols, trs))
     tex.append(latex_table(cols, trs, caption="Table IV in simulation: ablation (ALL)"))
+    md.append("![Table IV](table4.png)\n")
+    _write_paper_figures(out, table1, table2, table4)
     md += ["## The paper's findings, checked", ""]
     for f in findings:
         verdict = {True: "holds", False: "DOES NOT HOLD", None: "not checked"}[f.holds]

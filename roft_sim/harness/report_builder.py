@@ -23,7 +23,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roft_sim.datasets import open_sequence
-from roft_sim.datasets.atomic_files import atomic_write_text
+from roft_sim.datasets.atomic_files import atomic_write_bytes, atomic_write_text
+from roft_sim.datasets.image_files import encode_png_rgb
 from roft_sim.errors import ConfigError, DatasetFormatError, RoftSimError
 from roft_sim.faults import fault_config_from_mapping
 from roft_sim.harness.cells import CELLS_DIR, SweepCell, finished_cells
@@ -41,10 +42,11 @@ from roft_sim.harness.outputs import (
 from roft_sim.harness.run_dataset import METRICS_FILE, RUN_FILE
 from roft_sim.harness.runner import make_observation_stream
 from roft_sim.metrics import SequenceMetrics, accuracy_curve
-from roft_sim.records import MaskDetection
-from roft_sim.report.overlay import OverlayFrame, VideoWriter, draw_overlay, silhouette_mask
-from roft_sim.report.plotting import LinePlot, save_png, stack_images
+from roft_sim.records import Estimate, MaskDetection, PoseTrack
+from roft_sim.report.overlay import OverlayFrame, draw_overlay, silhouette_mask
+from roft_sim.report.plotting import Panel, Series, line_figure, save_figure
 from roft_sim.report.tables import METRIC_COLUMNS, Column, markdown_table
+from roft_sim.report.video import VideoWriter
 
 __all__ = ["ReportOptions", "ReportResult", "build_report", "newest_mask", "options_from_record"]
 
@@ -63,8 +65,6 @@ class ReportOptions:
     """Scale of the video frames; None = 1 up to 960 px wide, else 0.5."""
     sequences: tuple[str, ...] | None = None
     """Only these sequences; None = all."""
-    panel_px: tuple[int, int] = (560, 300)
-    """Size of one plot panel [px]."""
 
     def __post_init__(self) -> None:
         if self.max_video_frames is not None and self.max_video_frames < 1:
@@ -109,52 +109,91 @@ def _rel(path: Path, base: Path) -> str:
 
 # ------------------------------------------------------------------------------------ plots
 def _error_plot(
-    m: SequenceMetrics, arrivals: np.ndarray, path: Path, title: str, panel_px: tuple[int, int]
+    m: SequenceMetrics, arrivals: np.ndarray, path: Path, title: str, tracker: str
 ) -> Path:
-    w, h = panel_px
-    panels = []
+    """Per-frame pose and velocity errors (2x2 panels), pose arrivals marked."""
+    frames = m.frame_index
     specs = (
         ("position error", "cm", m.t_err_norm_cm),
         ("rotation error", "deg", m.a_err_deg),
         ("linear velocity error", "cm/s", np.linalg.norm(m.v_err_cmps, axis=1)),
         ("angular velocity error", "deg/s", np.linalg.norm(m.w_err_dps, axis=1)),
     )
-    for name, unit, values in specs:
-        plot = LinePlot(
-            width_px=w,
-            height_px=h,
-            title=f"{title}: {name}",
-            x_label="frame",
+    panels = [
+        Panel(
+            title=name,
             y_label=f"{name} [{unit}]",
-            x_integer=True,
+            series=(Series(x=frames, y=values, label=tracker),),
         )
-        if arrivals.size:
-            plot.add_events(arrivals, label="pose arrives", color=(200, 200, 200))
-        plot.add_line(m.frame_index, values, label="error", width_px=1)
-        panels.append(plot.render())
-    image = stack_images(
-        [
-            stack_images(panels[:2], direction="horizontal"),
-            stack_images(panels[2:], direction="horizontal"),
-        ]
+        for name, unit, values in specs
+    ]
+    figure = line_figure(
+        panels,
+        x_label="frame",
+        title=f"{title}: per-frame errors",
+        integer_x=True,
+        events_x=arrivals,
     )
-    return save_png(path, image)
+    return save_figure(figure, path)
 
 
-def _accuracy_plot(m: SequenceMetrics, path: Path, title: str, panel_px: tuple[int, int]) -> Path:
+def _velocity_plot(
+    estimates: Sequence[Estimate],
+    gt: PoseTrack,
+    arrivals: np.ndarray,
+    path: Path,
+    title: str,
+    tracker: str,
+) -> Path:
+    """Estimated and ground-truth velocity per axis (camera frame), pose arrivals marked:
+    rows x, y, z; columns linear [cm/s] and angular [deg/s]."""
+    frames = np.array([e.k for e in estimates], dtype=np.int64)
+    valid = np.array([e.valid for e in estimates])
+    v_est = np.array([e.v_obj_mps for e in estimates], dtype=np.float64) * 100.0
+    w_est = np.degrees(np.array([e.w_radps for e in estimates], dtype=np.float64))
+    v_est[~valid] = np.nan
+    w_est[~valid] = np.nan
+    v_gt = gt.v_obj_mps[frames] * 100.0
+    w_gt = np.degrees(gt.w_radps[frames])
+    panels = []
+    for axis, name in enumerate("xyz"):
+        for kind, unit, est, truth in (
+            ("linear", "cm/s", v_est, v_gt),
+            ("angular", "deg/s", w_est, w_gt),
+        ):
+            panels.append(
+                Panel(
+                    title=f"{kind} velocity, camera {name}",
+                    y_label=f"{kind} velocity {name} [{unit}]",
+                    series=(
+                        Series(x=frames, y=truth[:, axis], label="ground truth"),
+                        Series(x=frames, y=est[:, axis], label=f"{tracker} estimate"),
+                    ),
+                )
+            )
+    figure = line_figure(
+        panels,
+        x_label="frame",
+        title=f"{title}: velocity (camera frame)",
+        integer_x=True,
+        events_x=arrivals,
+        panel_in=(5.6, 2.6),
+    )
+    return save_figure(figure, path)
+
+
+def _accuracy_plot(m: SequenceMetrics, path: Path, title: str, tracker: str) -> Path:
+    """The ADD accuracy curve whose area is the ADD-AUC."""
     thresholds_m = np.linspace(0.0, 0.1, 201)
     acc = accuracy_curve(m.add_m, thresholds_m)
-    plot = LinePlot(
-        width_px=panel_px[0],
-        height_px=panel_px[1],
-        title=f"{title}: ADD accuracy (AUC {m.add_auc_pct:.2f} %)",
-        x_label="ADD threshold [cm]",
-        y_label="frames within [%]",
-        x_range=(0.0, 10.0),
+    panel = Panel(
+        title=f"ADD accuracy (AUC {m.add_auc_pct:.2f} %)",
+        y_label="frames within threshold [%]",
+        series=(Series(x=100 * thresholds_m, y=100 * np.asarray(acc), label=tracker),),
         y_range=(0.0, 100.0),
     )
-    plot.add_line(100 * thresholds_m, 100 * np.asarray(acc), label="accuracy")
-    return plot.save(path)
+    figure = line_figure([panel], x_label="ADD threshold [cm]", title=title, columns=1)
+    return save_figure(figure, path)
 
 
 # ------------------------------------------------------------------------------------ video
@@ -248,9 +287,19 @@ def _write_video(
                 )
             video.write(image)
             if k in wanted:
-                files.append(save_png(out_dir / "stills" / f"{name}_k{k:04d}.png", image))
+                still = out_dir / "stills" / f"{name}_k{k:04d}.png"
+                atomic_write_bytes(still, encode_png_rgb(image))
+                files.append(still)
     files.insert(0, video_path)
     return files, None
+
+
+def _ground_truth_if_available(seq_record: dict[str, Any]) -> PoseTrack | None:
+    """The ground truth of a run's sequence when its dataset is still at the recorded path."""
+    path = seq_record.get("path")
+    if not path or not Path(path).exists():
+        return None
+    return open_sequence(path).ground_truth()
 
 
 def newest_mask(
@@ -390,11 +439,23 @@ def _run_report(results: Path, out: Path, options: ReportOptions) -> ReportResul
         if (folder / FRAME_ERRORS_FILE).is_file():
             m = load_frame_errors(folder / FRAME_ERRORS_FILE)
             p1 = _error_plot(
-                m, arrivals, out / "plots" / f"{name}_errors.png", name, options.panel_px
+                m, arrivals, out / "plots" / f"{name}_errors.png", name, tracker["name"]
             )
-            p2 = _accuracy_plot(m, out / "plots" / f"{name}_accuracy.png", name, options.panel_px)
+            p2 = _accuracy_plot(m, out / "plots" / f"{name}_accuracy.png", name, tracker["name"])
             files += [p1, p2]
             md += [f"![errors]({_rel(p1, out)})", "", f"![accuracy]({_rel(p2, out)})", ""]
+            gt = _ground_truth_if_available(seq)
+            if gt is not None:
+                p3 = _velocity_plot(
+                    load_estimates(folder / ESTIMATES_FILE),
+                    gt,
+                    arrivals,
+                    out / "plots" / f"{name}_velocity.png",
+                    name,
+                    tracker["name"],
+                )
+                files.append(p3)
+                md += [f"![velocity]({_rel(p3, out)})", ""]
         else:
             notes.append(f"{name}: no ground truth, no error plots")
         if options.video:
@@ -460,7 +521,6 @@ def _sweep_report(results: Path, out: Path, options: ReportOptions) -> ReportRes
         ordered,
         out,
         parameter=parameter,
-        panel_px=options.panel_px,
         cells_dir=results / CELLS_DIR,
     )
     notes = [f"{len(missing)} planned cells are not finished"] if missing else []

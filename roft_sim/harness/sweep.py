@@ -61,7 +61,7 @@ from roft_sim.harness.options import InitPolicy, RunOptions
 from roft_sim.harness.outputs import DELIVERIES_FILE, load_deliveries
 from roft_sim.harness.run_dataset import find_sequences
 from roft_sim.metrics import SequenceMetrics, concatenate_metrics, step_time_stats
-from roft_sim.report.plotting import LinePlot, save_png, stack_images
+from roft_sim.report.plotting import Panel, Series, line_figure, save_figure
 from roft_sim.report.tables import (
     ERROR_COLUMNS,
     Column,
@@ -478,9 +478,7 @@ _PANELS = (
 )
 
 
-def plot_error_vs_parameter(
-    rows: Sequence[dict[str, Any]], parameter: str, path: Path, *, panel_px: tuple[int, int]
-) -> Path:
+def plot_error_vs_parameter(rows: Sequence[dict[str, Any]], parameter: str, path: Path) -> Path:
     """A 2x2 figure of the pooled metrics versus the swept parameter, one line per tracker
     (and base fault configuration when there are several)."""
     fault_labels = sorted({r["faults"] for r in rows})
@@ -490,68 +488,57 @@ def plot_error_vs_parameter(
         lines.setdefault(name, []).append(r)
     panels = []
     for key, title, unit in _PANELS:
-        plot = LinePlot(
-            width_px=panel_px[0],
-            height_px=panel_px[1],
-            title=f"{title} vs {parameter}",
-            x_label=_PARAMETER_AXIS.get(parameter, parameter),
-            y_label=f"{title} [{unit}]",
-            x_integer=parameter == "delay",
-        )
-        for i, (name, members) in enumerate(lines.items()):
+        series = []
+        for name, members in lines.items():
             members = sorted(members, key=lambda r: r["value"])
             y = [np.nan if r.get(key) is None else r[key] for r in members]
-            plot.add_line(
-                [r["value"] for r in members],
-                y,
-                label=name,
-                marker=("o", "s", "^", "d", "x")[i % 5],
+            series.append(Series(x=[r["value"] for r in members], y=y, label=name))
+        panels.append(
+            Panel(
+                title=f"{title} vs {parameter}", y_label=f"{title} [{unit}]", series=tuple(series)
             )
-        panels.append(plot.render())
-    top = stack_images(panels[:2], direction="horizontal")
-    bottom = stack_images(panels[2:], direction="horizontal")
-    return save_png(path, stack_images([top, bottom]))
+        )
+    figure = line_figure(
+        panels,
+        x_label=_PARAMETER_AXIS.get(parameter, parameter),
+        markers=True,
+        integer_x=parameter == "delay",
+    )
+    return save_figure(figure, path)
 
 
 def plot_error_traces(
-    cells: Sequence[SweepCell],
-    cells_dir: Path,
-    path: Path,
-    *,
-    title: str,
-    panel_px: tuple[int, int],
+    cells: Sequence[SweepCell], cells_dir: Path, path: Path, *, title: str
 ) -> Path:
     """Per-frame position and rotation error of several cells of ONE sequence (one line each),
     with the pose arrivals of the first cell that gets detections through the fault stream."""
-    pos = LinePlot(
-        width_px=panel_px[0],
-        height_px=panel_px[1],
-        title=f"{title}: position error",
-        x_label="frame",
-        y_label="error [cm]",
-    )
-    rot = LinePlot(
-        width_px=panel_px[0],
-        height_px=panel_px[1],
-        title=f"{title}: rotation error",
-        x_label="frame",
-        y_label="error [deg]",
-    )
+    position: list[Series] = []
+    rotation: list[Series] = []
     arrivals = None
     for cell in cells:
         m = load_cell_metrics(cells_dir, cell.cell_id)
         if m is None:
             continue
-        pos.add_line(m.frame_index, m.t_err_norm_cm, label=cell.label, width_px=1)
-        rot.add_line(m.frame_index, m.a_err_deg, label=cell.label, width_px=1)
+        position.append(Series(x=m.frame_index, y=m.t_err_norm_cm, label=cell.label))
+        rotation.append(Series(x=m.frame_index, y=m.a_err_deg, label=cell.label))
         spec = get_tracker_spec(cell.options.tracker)
         deliveries = cells_dir / cell.cell_id / DELIVERIES_FILE
         if arrivals is None and spec.detection_mode == "stream" and deliveries.is_file():
             arrivals = np.unique(load_deliveries(deliveries)["pose"].arrival_k)
-    for plot in (pos, rot):
-        if arrivals is not None:
-            plot.add_events(arrivals, label="pose arrives", color=(200, 200, 200))
-    return save_png(path, stack_images([pos.render(), rot.render()]))
+    panels = [
+        Panel(title="position error", y_label="position error [cm]", series=tuple(position)),
+        Panel(title="rotation error", y_label="rotation error [deg]", series=tuple(rotation)),
+    ]
+    figure = line_figure(
+        panels,
+        x_label="frame",
+        title=title,
+        columns=1,
+        integer_x=True,
+        events_x=arrivals,
+        panel_in=(11.2, 3.2),
+    )
+    return save_figure(figure, path)
 
 
 def _trace_groups(cells: Sequence[SweepCell]) -> list[tuple[str, list[SweepCell]]]:
@@ -587,7 +574,6 @@ def write_summary(
     *,
     parameter: str | None,
     plots: bool = True,
-    panel_px: tuple[int, int] = (560, 340),
     cells_dir: Path | None = None,
 ) -> tuple[list[dict[str, Any]], list[Path]]:
     """Writes ``summary.{md,csv,tex}``, ``cells.csv``, ``timing.csv`` and the plots into
@@ -602,9 +588,7 @@ def write_summary(
         plot_dir = out_dir / "plots"
         if parameter is not None:
             written.append(
-                plot_error_vs_parameter(
-                    rows, parameter, plot_dir / f"error_vs_{parameter}.png", panel_px=panel_px
-                )
+                plot_error_vs_parameter(rows, parameter, plot_dir / f"error_vs_{parameter}.png")
             )
         for name, members in _trace_groups(cells):
             seq = members[0].sequence_name
@@ -614,7 +598,6 @@ def write_summary(
                     cells_dir,
                     plot_dir / f"trace_{_safe_name(name)}_{_safe_name(seq)}.png",
                     title=f"{seq}, {name}",
-                    panel_px=(2 * panel_px[0], panel_px[1]),
                 )
             )
     md = [f"# Sweep: {config_name}", ""]

@@ -1,10 +1,8 @@
 """Preview videos of a scenario: rgb | depth | mask | flow side by side, to look at a scene before
 generating a dataset.
 
-Video files are written with OpenCV: ``.mp4`` with the ``mp4v`` (MPEG-4 part 2) codec, ``.avi``
-with Motion-JPEG, ``.gif`` with ``cv2.imwriteanimation`` (OpenCV's VideoWriter has no GIF codec;
-the animated-image writer does, with a 256-colour palette and dithering). H.264 (``avc1``) is not
-available in the opencv-python-headless wheels.
+Video files (``.mp4``, ``.avi``, ``.gif``) are written by the one video writer,
+:class:`roft_sim.report.video.VideoWriter`.
 """
 
 from __future__ import annotations
@@ -20,21 +18,17 @@ from numpy.typing import NDArray
 from roft_sim.errors import ConfigError
 from roft_sim.records import FlowField
 from roft_sim.render.ground_truth import RenderedFrame
+from roft_sim.report.video import VideoWriter
 
 U8 = NDArray[np.uint8]
 
 __all__ = [
-    "VIDEO_SUFFIXES",
     "flow_to_rgb",
     "depth_to_rgb",
     "mask_to_rgb",
     "preview_panel",
-    "VideoSink",
     "write_preview",
 ]
-
-VIDEO_SUFFIXES = (".mp4", ".avi", ".gif")
-"""Video file types :class:`VideoSink` writes."""
 
 
 def flow_to_rgb(flow: FlowField, max_px: float) -> U8:
@@ -114,65 +108,6 @@ def preview_panel(
     return np.concatenate([_label(p, t) for p, t in zip(panels, labels, strict=True)], axis=1)
 
 
-class VideoSink:
-    """Writes RGB frames to ``.mp4`` (mp4v), ``.avi`` (MJPG) or ``.gif``. A context manager.
-
-    Raises:
-        ConfigError: unsupported suffix, or OpenCV cannot open the writer.
-    """
-
-    def __init__(self, path: str | Path, fps: float) -> None:
-        self.path = Path(path)
-        self.fps = float(fps)
-        suffix = self.path.suffix.lower()
-        if suffix not in VIDEO_SUFFIXES:
-            raise ConfigError(
-                f"cannot write video {str(self.path)!r}: use one of {', '.join(VIDEO_SUFFIXES)}"
-            )
-        self._suffix = suffix
-        self._writer: cv2.VideoWriter | None = None
-        self._gif_frames: list[U8] = []
-        self.frames_written = 0
-
-    def write(self, rgb: U8) -> None:
-        """Appends one ``(H, W, 3)`` uint8 RGB frame (all frames must have the same size)."""
-        bgr = np.ascontiguousarray(rgb[..., ::-1])
-        if self._suffix == ".gif":
-            self._gif_frames.append(bgr)
-        else:
-            if self._writer is None:
-                fourcc = cv2.VideoWriter_fourcc(*("mp4v" if self._suffix == ".mp4" else "MJPG"))
-                h, w = bgr.shape[:2]
-                self._writer = cv2.VideoWriter(str(self.path), fourcc, self.fps, (w, h))
-                if not self._writer.isOpened():
-                    raise ConfigError(
-                        f"OpenCV could not open a {self._suffix} writer for {str(self.path)!r}; "
-                        "check that the folder exists and is writable, or try .avi or .gif"
-                    )
-            self._writer.write(bgr)
-        self.frames_written += 1
-
-    def close(self) -> None:
-        """Finishes the file (idempotent)."""
-        if self._writer is not None:
-            self._writer.release()
-            self._writer = None
-        if self._gif_frames:
-            animation = cv2.Animation()
-            animation.frames = self._gif_frames
-            animation.durations = [int(round(1000 / self.fps))] * len(self._gif_frames)
-            params = [cv2.IMWRITE_GIF_DITHER, 1]
-            if not cv2.imwriteanimation(str(self.path), animation, params):
-                raise ConfigError(f"OpenCV could not write the GIF {str(self.path)!r}")
-            self._gif_frames = []
-
-    def __enter__(self) -> VideoSink:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-
 def _frames_with_flow(
     renderer: Any, start: int, stop: int
 ) -> Iterator[tuple[RenderedFrame, FlowField | None]]:
@@ -227,7 +162,7 @@ def write_preview(
     if not (np.isfinite(scale) and 0 < scale <= 4):
         raise ConfigError(f"--scale must lie in (0, 4], got {scale}")
     depth_range: tuple[float, float] | None = None
-    with VideoSink(out, renderer.scenario.fps) as sink:
+    with VideoWriter(out, renderer.scenario.fps) as sink:
         bar = tqdm(
             _frames_with_flow(renderer, start, stop),
             total=stop - start,

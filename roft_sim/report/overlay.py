@@ -14,13 +14,11 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from roft_sim.errors import ConfigError
 from roft_sim.geometry.camera import CameraIntrinsics
 from roft_sim.records import ObjectModel
 
@@ -37,8 +35,6 @@ __all__ = [
     "silhouette_mask",
     "OverlayFrame",
     "draw_overlay",
-    "VideoWriter",
-    "VIDEO_SUFFIXES",
 ]
 
 GT_COLOR = (40, 220, 40)
@@ -173,60 +169,3 @@ def draw_overlay(frame: OverlayFrame, *, legend: bool = True) -> U8:
     if legend:
         _legend(img, scale)
     return img
-
-
-VIDEO_SUFFIXES = (".mp4", ".avi")
-
-
-class VideoWriter:
-    """Writes RGB frames to ``.mp4`` (MPEG-4 part 2, ``mp4v``) or ``.avi`` (Motion-JPEG) with
-    OpenCV's VideoWriter (the codecs available in the opencv-python-headless wheels; no H.264).
-
-    Raises:
-        ConfigError: unsupported suffix, or OpenCV cannot open the writer.
-    """
-
-    def __init__(self, path: str | Path, fps: float) -> None:
-        self.path = Path(path)
-        if self.path.suffix.lower() not in VIDEO_SUFFIXES:
-            raise ConfigError(
-                f"cannot write video {str(self.path)!r}: use one of {', '.join(VIDEO_SUFFIXES)}"
-            )
-        if not fps > 0:
-            raise ConfigError(f"video fps must be > 0, got {fps}")
-        self.fps = float(fps)
-        self._writer: cv2.VideoWriter | None = None
-        self._size: tuple[int, int] | None = None
-        self.frames_written = 0
-
-    def write(self, rgb: U8) -> None:
-        """Appends one (H, W, 3) uint8 RGB frame; every frame must have the first one's size."""
-        h, w = rgb.shape[:2]
-        if self._writer is None:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
-            code = "mp4v" if self.path.suffix.lower() == ".mp4" else "MJPG"
-            self._writer = cv2.VideoWriter(
-                str(self.path), cv2.VideoWriter_fourcc(*code), self.fps, (w, h)
-            )
-            if not self._writer.isOpened():
-                raise ConfigError(
-                    f"OpenCV could not open a {self.path.suffix} writer for {str(self.path)!r}; "
-                    "check that the folder is writable, or try .avi"
-                )
-            self._size = (w, h)
-        elif (w, h) != self._size:
-            raise ValueError(f"frame size {w}x{h} differs from the first frame's {self._size}")
-        self._writer.write(np.ascontiguousarray(rgb[..., ::-1]))
-        self.frames_written += 1
-
-    def close(self) -> None:
-        """Finishes the file (idempotent)."""
-        if self._writer is not None:
-            self._writer.release()
-            self._writer = None
-
-    def __enter__(self) -> VideoWriter:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()

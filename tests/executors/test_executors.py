@@ -205,3 +205,22 @@ def test_shard_assignment_is_pinned():
     with pytest.raises(ValueError, match="unique"):
         select_shard(["a", "a"], Shard(0, 2), key=str)
     assert select_shard(units, None, key=str) == units
+
+
+def test_unit_result_is_the_one_dispatch_rule():
+    from roft_sim.errors import ConfigError
+    from roft_sim.executors.base import WorkUnitError, unit_result
+
+    assert unit_result("u", lambda: 3) == 3
+
+    def user_error() -> None:
+        raise ConfigError("bad option")
+
+    with pytest.raises(ConfigError, match="bad option"):  # passes through unwrapped
+        unit_result("u", user_error)
+    with pytest.raises(WorkUnitError, match="work unit 'u' failed: ZeroDivisionError") as info:
+        unit_result("u", lambda: 1 / 0)
+    assert info.value.unit == "u" and not info.value.worker_died
+    with pytest.raises(WorkUnitError, match="a worker process died") as info:
+        unit_result("u", lambda: 1 / 0, worker_death=(ZeroDivisionError,))
+    assert info.value.worker_died

@@ -12,14 +12,14 @@ from harness_cases import write_box_dataset
 
 from roft_sim.cli import main
 from roft_sim.errors import ConfigError
-from roft_sim.faults import BernoulliDropout, FixedDelay, Rate, load_faults
-from roft_sim.harness.cells import CELL_FILE, CELLS_DIR, finished_cells
-from roft_sim.harness.executors import (
+from roft_sim.executors import (
     LocalProcessExecutor,
     SerialExecutor,
     WorkUnitError,
     make_executor,
 )
+from roft_sim.faults import BernoulliDropout, FixedDelay, Rate, load_faults
+from roft_sim.harness.cells import CELL_FILE, CELLS_DIR, finished_cells
 from roft_sim.harness.sweep import (
     SweepConfig,
     SweptParameter,

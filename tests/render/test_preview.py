@@ -12,7 +12,8 @@ from stand_ins import open_renderer, small_scenario
 from roft_sim.cli import main
 from roft_sim.errors import ConfigError
 from roft_sim.records import FlowField
-from roft_sim.render.preview import VideoSink, depth_to_rgb, flow_to_rgb, write_preview
+from roft_sim.render.preview import depth_to_rgb, flow_to_rgb, write_preview
+from roft_sim.report.video import VideoWriter
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -65,9 +66,9 @@ def test_write_preview_writes_a_readable_video(tmp_path, suffix):
     assert shape == (60, 4 * 80)  # four 80x60 panels side by side
 
 
-def test_video_sink_rejects_unknown_types(tmp_path):
+def test_video_writer_rejects_unknown_types(tmp_path):
     with pytest.raises(ConfigError, match=r"use one of \.mp4, \.avi, \.gif"):
-        VideoSink(tmp_path / "x.mkv", 30)
+        VideoWriter(tmp_path / "x.mkv", 30)
 
 
 def test_cli_usage_errors_exit_2(tmp_path, capsys):

@@ -1,144 +1,108 @@
-"""OpenCV line plots: nice ticks, the axis mapping, lines, markers, legend, PNG output."""
+"""matplotlib figures: what each panel draws (read back from the artists), labels with units,
+legends, event lines, bar groups, and the PNG written at 100 dpi."""
 
 from __future__ import annotations
 
 import cv2
 import numpy as np
 import pytest
-from hypothesis import given
-from hypothesis import strategies as st
+from matplotlib.lines import Line2D
 
-from roft_sim.report.plotting import LinePlot, nice_ticks, save_png, stack_images, tick_labels
-
-
-@pytest.mark.parametrize(
-    ("lo", "hi", "expected"),
-    [
-        (0.0, 9.3, [0, 2, 4, 6, 8, 10]),
-        (0.13, 0.87, [0, 0.2, 0.4, 0.6, 0.8, 1.0]),
-        (-3.0, 47.0, [-10, 0, 10, 20, 30, 40, 50]),
-        (0.0, 12.0, [0.0, 2.5, 5.0, 7.5, 10.0, 12.5]),
-        (5.0, 5.0, [4.4, 4.6, 4.8, 5.0, 5.2, 5.4, 5.6]),  # widened by 10 %: step 1/5 of 1.0
-        (0.0, 0.0, [-1.0, -0.5, 0.0, 0.5, 1.0]),
-    ],
+from roft_sim.report.plotting import (
+    DPI,
+    EVENT_COLOR,
+    Panel,
+    Series,
+    bar_figure,
+    line_figure,
+    save_figure,
 )
-def test_nice_ticks_hand_cases(lo, hi, expected):
-    np.testing.assert_allclose(nice_ticks(lo, hi), expected, atol=1e-12)
 
 
-def test_integer_ticks_are_whole_numbers():
-    np.testing.assert_array_equal(nice_ticks(0, 12, integer=True), [0, 5, 10, 15])
-    np.testing.assert_array_equal(nice_ticks(0, 3, integer=True), [0, 1, 2, 3])
+def _panel(label: str = "roft") -> Panel:
+    return Panel(
+        title="position error",
+        y_label="position error [cm]",
+        series=(Series(x=[0, 1, 2, 3], y=[1.0, 2.0, np.nan, 4.0], label=label),),
+    )
 
 
-@given(
-    st.floats(-1e6, 1e6, allow_nan=False),
-    st.floats(1e-4, 1e4, allow_nan=False),
-    st.integers(2, 12),
-)
-def test_nice_ticks_cover_the_range_evenly(lo, relative_span, max_ticks):
-    hi = lo + relative_span * max(1.0, abs(lo))  # spans a plot can show (>= 1e-4 of the values)
-    ticks = nice_ticks(lo, hi, max_ticks=max_ticks)
-    step = ticks[1] - ticks[0]
-    assert ticks[0] <= lo + 1e-9 * max(1, abs(lo)) and ticks[-1] >= hi - 1e-9 * max(1, abs(hi))
-    np.testing.assert_allclose(np.diff(ticks), step, rtol=1e-6, atol=1e-9 * max(1, abs(hi)))
-    mantissa = step / 10 ** np.floor(np.log10(step))
-    assert min(abs(mantissa - m) for m in (1, 2, 2.5, 5, 10)) < 1e-6
-    assert len(ticks) <= 2 * max_ticks + 1
+def test_line_figure_draws_the_data_with_labels_units_and_legend():
+    figure = line_figure([_panel(), _panel("naive")], x_label="frame", title="seq")
+    first, second = figure.axes
+    assert first.get_xlabel() == "frame" and first.get_ylabel() == "position error [cm]"
+    assert first.get_title() == "position error" and figure.get_suptitle() == "seq"
+    (line,) = first.get_lines()
+    np.testing.assert_array_equal(line.get_xdata(), [0, 1, 2, 3])
+    np.testing.assert_array_equal(line.get_ydata(), [1.0, 2.0, np.nan, 4.0])  # NaN = a gap
+    assert [t.get_text() for t in second.get_legend().get_texts()] == ["naive"]
 
 
-def test_tick_labels_use_just_enough_decimals():
-    assert tick_labels([0, 2.5, 5, 7.5]) == ["0.0", "2.5", "5.0", "7.5"]
-    assert tick_labels([0, 10, 20]) == ["0", "10", "20"]
-    assert tick_labels([0.1, 0.2]) == ["0.1", "0.2"]
+def test_events_are_vertical_lines_in_every_panel_with_one_legend_entry():
+    arrivals = [6.0, 12.0, 18.0]
+    figure = line_figure([_panel(), _panel()], x_label="frame", events_x=arrivals)
+    for ax in figure.axes:
+        events = [
+            ln for ln in ax.get_lines() if isinstance(ln, Line2D) and ln.get_color() == EVENT_COLOR
+        ]
+        assert sorted(float(ln.get_xdata()[0]) for ln in events) == arrivals
+        for ln in events:  # vertical: the same x at both ends, spanning the axes' height
+            assert ln.get_xdata()[0] == ln.get_xdata()[1]
+        texts = [t.get_text() for t in ax.get_legend().get_texts()]
+        assert texts.count("pose arrives") == 1 and "roft" in texts
 
 
-def test_nice_ticks_reject_bad_ranges():
-    with pytest.raises(ValueError, match="lo <= hi"):
-        nice_ticks(2.0, 1.0)
-    with pytest.raises(ValueError, match="finite"):
-        nice_ticks(0.0, float("inf"))
+def test_markers_and_integer_ticks_for_parameter_curves():
+    panel = Panel(
+        title="ADD-AUC vs delay",
+        y_label="ADD-AUC [%]",
+        series=(
+            Series(x=[0, 3, 6], y=[90, 80, 70], label="roft"),
+            Series(x=[0, 3, 6], y=[60, 50, 40], label="hold"),
+        ),
+        y_range=(0.0, 100.0),
+    )
+    figure = line_figure([panel], x_label="delay [frames]", markers=True, integer_x=True)
+    ax = figure.axes[0]
+    markers = [ln.get_marker() for ln in ax.get_lines()]
+    assert markers[0] != markers[1] and "None" not in markers
+    assert ax.get_ylim() == (0.0, 100.0)
+    figure.canvas.draw()
+    ticks = ax.get_xticks()
+    np.testing.assert_array_equal(ticks, np.round(ticks))
 
 
-def test_axis_mapping_puts_limits_on_the_frame():
-    plot = LinePlot(width_px=400, height_px=300, x_range=(0.0, 10.0), y_range=(-1.0, 1.0))
-    left, top, right, bottom = plot.plot_area_px
-    u, v = plot.data_to_px([0.0, 10.0, 5.0], [-1.0, 1.0, 0.0])
-    np.testing.assert_allclose(u, [left, right, (left + right) / 2])
-    np.testing.assert_allclose(v, [bottom, top, (top + bottom) / 2])
+def test_bar_figure_groups_and_hatches():
+    figure = bar_figure(
+        ["cracker", "ALL"],
+        [("ADD-AUC", "ADD-AUC [%]", {"sim": [80.0, None], "paper": [78.5, 76.6]})],
+        hatched=["paper"],
+    )
+    ax = figure.axes[0]
+    bars = ax.patches
+    assert len(bars) == 4
+    heights = [b.get_height() for b in bars]
+    np.testing.assert_array_equal(heights[:2], [80.0, np.nan])  # None: no bar
+    assert heights[2:] == [78.5, 76.6]
+    assert not bars[0].get_hatch() and bars[2].get_hatch() == "//"
+    assert [t.get_text() for t in ax.get_xticklabels()] == ["cracker", "ALL"]
+    assert [t.get_text() for t in figure.legends[0].get_texts()] == ["sim", "paper"]
 
 
-@pytest.mark.parametrize("marker", ["o", "s", "^", "d", "x"])
-def test_a_marker_lands_on_the_pixel_the_mapping_predicts(marker):
-    color = (10, 200, 30)
-    plot = LinePlot(width_px=420, height_px=320, title="t", x_label="x", y_label="y")
-    x, y = np.array([1.0, 4.0, 7.5]), np.array([2.0, -3.0, 11.0])
-    plot.add_line(x, y, marker=marker, line=False, color=color)
-    image = plot.render()
-    u, v = plot.data_to_px(x, y)
-    for ui, vi in zip(u, v, strict=True):
-        assert tuple(image[int(round(vi)), int(round(ui))]) == color
-    # the axis limits are nice numbers around the data
-    assert plot.x_limits == (0.0, 8.0) and plot.y_limits[0] <= -3.0 and plot.y_limits[1] >= 11.0
+def test_save_figure_writes_a_png_of_the_figure_size(tmp_path):
+    figure = line_figure([_panel()], x_label="frame", columns=1, panel_in=(4.0, 3.0))
+    path = save_figure(figure, tmp_path / "sub" / "plot.png")
+    image = cv2.imread(str(path))
+    assert image.shape == (3 * DPI, 4 * DPI, 3)
+    assert not list(path.parent.glob(".*tmp"))  # written atomically, no temp file left
 
 
-def test_lines_follow_the_data_and_break_at_nan():
-    color = (200, 20, 20)
-    plot = LinePlot(width_px=400, height_px=300, x_range=(0.0, 4.0), y_range=(0.0, 4.0))
-    plot.add_line([0, 1, 2, 3, 4], [1, 1, np.nan, 3, 3], color=color, width_px=3)
-    image = plot.render()
-
-    def colour_at(x, y):
-        u, v = plot.data_to_px(x, y)
-        return image[int(round(float(v))), int(round(float(u)))]
-
-    assert tuple(colour_at(0.5, 1.0)) == color  # on the first segment
-    assert tuple(colour_at(3.5, 3.0)) == color  # on the last segment
-    # nothing drawn across the gap (between x = 1 and 3 at any height the line would pass)
-    gap = [tuple(colour_at(2.0, y)) for y in np.linspace(0.5, 3.5, 7)]
-    assert color not in gap
-
-
-def test_events_span_the_plot_height():
-    plot = LinePlot(width_px=400, height_px=300, x_range=(0.0, 10.0), y_range=(0.0, 1.0))
-    plot.add_events([5.0], color=(0, 0, 250))
-    image = plot.render()
-    u, _ = plot.data_to_px(5.0, 0.0)
-    _, top, _, bottom = plot.plot_area_px
-    column = image[top + 2 : bottom - 1, int(round(float(u)))]
-    assert (column[:, 2] > 150).all() and (column[:, 0] < 120).all()
-
-
-def test_legend_avoids_the_data():
-    plot = LinePlot(width_px=400, height_px=300, x_range=(0.0, 10.0), y_range=(0.0, 10.0))
-    plot.add_line([0, 10], [9, 9], label="a long legend label")  # across the top
-    plot.add_line([0, 3], [1, 1], label="b")  # bottom left
-    image = plot.render()
-    left, top, right, bottom = plot.plot_area_px
-    frame = np.all(image == 180, axis=2)  # the legend's grey frame
-    assert not frame[top : (top + bottom) // 2].any()
-    assert frame[(top + bottom) // 2 : bottom, (left + right) // 2 : right].any()
-
-
-def test_save_png_round_trip_and_stacking(tmp_path):
-    a = LinePlot(width_px=300, height_px=200).add_line([0, 1], [0, 1]).render()
-    b = LinePlot(width_px=250, height_px=200).add_line([0, 1], [1, 0]).render()
-    both = stack_images([a, b], direction="horizontal")
-    assert both.shape == (200, 550, 3)
-    tall = stack_images([a, b])
-    assert tall.shape == (400, 300, 3) and (tall[200:, 250:] == 255).all()
-    path = save_png(tmp_path / "p" / "plot.png", both)
-    back = cv2.imread(str(path))[..., ::-1]
-    np.testing.assert_array_equal(back, both)
-
-
-def test_bad_plot_arguments():
-    with pytest.raises(ValueError, match="at least"):
-        LinePlot(width_px=50, height_px=300)
-    with pytest.raises(ValueError, match="x_range"):
-        LinePlot(x_range=(1.0, 1.0))
-    plot = LinePlot()
+def test_bad_arguments():
     with pytest.raises(ValueError, match="same length"):
-        plot.add_line([0, 1], [0])
-    with pytest.raises(ValueError, match="unknown marker"):
-        plot.add_line([0], [0], marker="*")
+        Series(x=[0, 1], y=[0])
+    with pytest.raises(ValueError, match="y_range"):
+        Panel(title="t", y_label="y", y_range=(1.0, 1.0))
+    with pytest.raises(ValueError, match="at least one panel"):
+        line_figure([], x_label="x")
+    with pytest.raises(ValueError, match="2 categories"):
+        bar_figure(["a", "b"], [("t", "y", {"g": [1.0]})])

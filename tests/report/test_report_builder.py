@@ -44,7 +44,11 @@ def test_run_report_has_tables_plots_video_and_stills(run_dir, capsys):
     assert "# Report: detector-hold on 1 sequence(s)" in text
     assert "| box_a |" in text and "| ALL |" in text and "| MEAN |" in text
     assert "outliers-10pct" in text
-    for name in ("plots/box_a_errors.png", "plots/box_a_accuracy.png"):
+    for name in (
+        "plots/box_a_errors.png",
+        "plots/box_a_accuracy.png",
+        "plots/box_a_velocity.png",
+    ):
         assert f"]({name})" in text
         image = cv2.imread(str(report / name))
         assert image is not None and image.shape[0] >= 300

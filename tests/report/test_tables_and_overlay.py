@@ -17,7 +17,6 @@ from roft_sim.report.overlay import (
     ESTIMATE_COLOR,
     GT_COLOR,
     OverlayFrame,
-    VideoWriter,
     draw_overlay,
     silhouette_mask,
 )
@@ -30,6 +29,7 @@ from roft_sim.report.tables import (
     markdown_table,
     text_table,
 )
+from roft_sim.report.video import VideoWriter
 from roft_sim.testing.analytic_scene import AnalyticBox, default_intrinsics, raycast_box
 
 COLUMNS = [Column("name", "name", align="left"), Column("x", "x %", ".2f"), Column("n", "n", "d")]
@@ -143,9 +143,9 @@ def test_overlay_draws_the_outlines_where_the_masks_are():
     assert (image[far] == 90).all()
 
 
-@pytest.mark.parametrize("suffix", [".mp4", ".avi"])
+@pytest.mark.parametrize("suffix", [".mp4", ".avi", ".gif"])
 def test_video_writer_writes_readable_frames(tmp_path, suffix):
-    path = tmp_path / f"v{suffix}"
+    path = tmp_path / "new folder" / f"v{suffix}"
     with VideoWriter(path, fps=30) as video:
         for k in range(5):
             video.write(np.full((48, 64, 3), 40 * k, dtype=np.uint8))
@@ -161,8 +161,10 @@ def test_video_writer_writes_readable_frames(tmp_path, suffix):
 
 
 def test_video_writer_errors(tmp_path):
-    with pytest.raises(ConfigError, match="use one of .mp4, .avi"):
-        VideoWriter(tmp_path / "v.gif", fps=30)
+    with pytest.raises(ConfigError, match=r"use one of \.mp4, \.avi, \.gif"):
+        VideoWriter(tmp_path / "v.mkv", fps=30)
+    with pytest.raises(ConfigError, match="fps must be > 0"):
+        VideoWriter(tmp_path / "v.mp4", fps=0)
     video = VideoWriter(tmp_path / "v.mp4", fps=30)
     video.write(np.zeros((48, 64, 3), np.uint8))
     with pytest.raises(ValueError, match="differs from the first frame"):
