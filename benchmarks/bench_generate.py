@@ -1,26 +1,35 @@
-"""Generation throughput of ``roft-sim generate`` per format, resolution and worker count, and
-peak memory over a long sequence.
+"""Generation throughput of ``roft-sim generate`` next to the renderer's, and peak memory.
 
-Workload: the Fast-YCB-like scenario ``scenarios/fast_ycb/003_cracker_box.toml`` (procedural
-stand-in mesh, no asset cache) with the default networks (gt float flow, nvof-like DIS S10.5
-flow, DOPE-like poses, Mask R-CNN-like masks) rendered at each resolution (intrinsics scaled).
+The one source of the README's generation numbers (docs/generate.md, "Performance"). Workload:
+the Fast-YCB-like scenario ``scenarios/fast_ycb/003_cracker_box.toml`` (procedural stand-in mesh)
+with the default networks (gt float flow, nvof-like DIS S10.5 flow, DOPE-like poses, Mask
+R-CNN-like masks) at each resolution (intrinsics scaled), written as fast-ycb by default, with an
+asset cache that the first (unmeasured) run fills, as ``roft-sim generate``'s default cache is
+after its first run.
 
-Throughput, medians over ``--repeats`` fresh runs of N frames each:
+Every measurement runs in a fresh process; with ``--baseline-ref REF`` the same measurement also
+runs on the package as it was at git commit REF (extracted with ``git archive``), interleaved
+with the current one (baseline, now, baseline, now, ...), so that both see the same machine load;
+the table prints medians and the ratio now / baseline. Rows:
 
-- ``steady fr/s``: frames per second once every worker is producing, from the time stamps at
-  which frames are reported written: (N - W) / (t_last - t_W), where t_W is when the W-th frame
-  (W = workers) was written; start-up, object loading, worker spawning and finalize are left out;
-- ``wall fr/s``: N / the whole run's wall time (start-up and finalize included: what a short run
-  sees).
+- ``render+seg+flow``: :class:`SceneRenderer` with segmentation plus exact ground-truth flow from
+  the previous frame, frames/s over N frames (what ``bench_render.py``'s ``+seg+flow`` mode
+  measures, on this scenario): the renderer's bare rate that generation is compared with;
+- ``generate W=w steady``: frames/s once every worker is producing, from the time stamps at which
+  frames are reported written: (N - W) / (t_last - t_W), t_W when the W-th frame was written
+  (start-up, spawning and finalize left out; one unit of N/W frames per worker);
+- ``generate W=w wall``: N / the whole run's wall time (start-up and finalize included);
+- ``short W=2 wall``: ``--short-frames`` frames (default 24) with 2 workers, wall frames/s: what
+  a short run sees; printed as a fraction of the 2-worker steady rate too.
 
-One unmeasured 2-frame run per configuration comes first (in-process caches: imports, the
-object's procedural texture).
+Then the ratios of the goals (issue 17): 1-worker steady / render+seg+flow, and short / steady.
+The 1-minute load average is printed with every row (the machine may be shared).
 
 Memory: peak resident set size (``ru_maxrss``) of a fresh process generating a short and a long
-sequence of the CI cracker-box scenario at 96x72, in-process; flat when frames stream to disk.
+sequence of the CI cracker-box scenario at 96x72 in-process; flat when frames stream to disk.
 
-    python benchmarks/bench_generate.py                       # everything (~10 min on 2 cores)
-    python benchmarks/bench_generate.py --resolutions 640x480 --formats fast-ycb --repeats 1
+    python benchmarks/bench_generate.py --baseline-ref main       # everything
+    python benchmarks/bench_generate.py --resolutions 640x480 --repeats 1 --skip-memory
     python benchmarks/bench_generate.py --skip-throughput --long-frames 3000
 """
 
@@ -28,6 +37,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import json
 import os
 import resource
 import shutil
@@ -37,83 +47,87 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
-from roft_sim.render.gl_backend import require_gl_backend
-
-BACKEND = require_gl_backend(os.environ)  # before MuJoCo is imported
-
-from roft_sim.generation import (  # noqa: E402
-    GenerationOptions,
-    ScenarioOverrides,
-    generate_dataset,
-    parse_resolution,
-    shipped_scenarios_dir,
-)
-from roft_sim.scenario import load_scenario  # noqa: E402
-
-FORMATS = ("fast-ycb", "bop", "hdf5")
+REPO = Path(__file__).resolve().parents[1]
 
 
-def timed_run(scenario, fmt: str, frames: int, workers: int, chunk: int, resolution):
-    """(steady frames/s, wall frames/s) of one fresh run."""
+# ------------------------------------------------------------------------ child measurements
+def _scenario(resolution: tuple[int, int]) -> Any:
+    from roft_sim.generation import ScenarioOverrides, shipped_scenarios_dir
+    from roft_sim.scenario import load_scenario
+
+    scenario = load_scenario(shipped_scenarios_dir() / "fast_ycb" / "003_cracker_box.toml")
+    return ScenarioOverrides(resolution=resolution).apply(scenario)
+
+
+def child_render(resolution: tuple[int, int], frames: int, cache: Path) -> float:
+    """render+seg+flow frames/s over ``frames`` frames after one warm-up frame."""
+    from roft_sim.render import SceneRenderer, ground_truth_flow
+
+    scenario = _scenario(resolution)
+    with SceneRenderer(scenario, cache_dir=cache, segmentation=True) as renderer:
+        previous = renderer.render_frame(0)
+        start = time.perf_counter()
+        for k in range(1, frames + 1):
+            frame = renderer.render_frame(k)
+            ground_truth_flow(previous, frame, renderer.intrinsics)
+            previous = frame
+        return frames / (time.perf_counter() - start)
+
+
+def child_generate(
+    resolution: tuple[int, int], frames: int, workers: int, fmt: str, cache: Path
+) -> tuple[float, float]:
+    """(steady, wall) frames/s of one run (see the module doc)."""
+    from roft_sim.generation import GenerationOptions, ScenarioOverrides, generate_dataset
+    from roft_sim.render.gl_backend import require_gl_backend
+
+    backend = require_gl_backend(os.environ)
     out = Path(tempfile.mkdtemp(prefix="bench_generate_"))
     stamps: list[float] = []
 
     def on_frames(n: int) -> None:
         stamps.extend([time.perf_counter()] * n)
 
+    known = {f.name for f in dataclasses.fields(GenerationOptions)}
+    options = {
+        "format": fmt,
+        "workers": workers,
+        "chunk_frames": max(1, -(-frames // workers)),  # one unit per worker
+        "progress": False,
+        "gl_backend": backend,
+        "cache_dir": cache,
+    }
     try:
         t0 = time.perf_counter()
         summary = generate_dataset(
-            [scenario],
+            [_scenario(resolution)],
             out,
-            GenerationOptions(
-                format=fmt, workers=workers, chunk_frames=chunk, progress=False, gl_backend=BACKEND
-            ),
-            overrides=ScenarioOverrides(frames=frames, resolution=resolution),
+            GenerationOptions(**{k: v for k, v in options.items() if k in known}),
+            overrides=ScenarioOverrides(frames=frames),
             on_frames=on_frames,
         )
         wall = time.perf_counter() - t0
         assert summary.finished and summary.frames_generated == frames == len(stamps)
-        steady = (frames - workers) / (stamps[-1] - stamps[workers - 1])
+        steady = (frames - workers) / max(1e-9, stamps[-1] - stamps[workers - 1])
         return steady, frames / wall
     finally:
         shutil.rmtree(out, ignore_errors=True)
 
 
-def throughput(args: argparse.Namespace) -> None:
-    scenario = load_scenario(shipped_scenarios_dir() / "fast_ycb" / "003_cracker_box.toml")
-    print(
-        f"backend {BACKEND}, {os.cpu_count()} CPUs, scenario {scenario.name}, default networks, "
-        f"medians over {args.repeats} repeats"
-    )
-    print(f"{'resolution':>10} {'format':>9} {'workers':>7} {'N':>3} {'steady fr/s':>12} "
-          f"{'wall fr/s':>10}")  # fmt: skip
-    for text in args.resolutions:
-        resolution = parse_resolution(text)
-        n = (
-            args.frames
-            if args.frames
-            else (12 if resolution[0] * resolution[1] <= 640 * 480 else 8)
-        )
-        for fmt in args.formats:
-            for workers in args.workers:
-                chunk = max(1, -(-n // workers))  # one unit per worker
-                timed_run(scenario, fmt, 2, 1, chunk, resolution)  # warm caches
-                runs = [
-                    timed_run(scenario, fmt, n, workers, chunk, resolution)
-                    for _ in range(args.repeats)
-                ]
-                steady = statistics.median(r[0] for r in runs)
-                wall = statistics.median(r[1] for r in runs)
-                print(
-                    f"{text:>10} {fmt:>9} {workers:>7} {n:>3} {steady:>12.2f} {wall:>10.2f}",
-                    flush=True,
-                )
-
-
 def memory_child(frames: int) -> None:
     """Generates ``frames`` frames in this process and prints its peak RSS [MiB]."""
+    from roft_sim.generation import (
+        GenerationOptions,
+        ScenarioOverrides,
+        generate_dataset,
+        shipped_scenarios_dir,
+    )
+    from roft_sim.render.gl_backend import require_gl_backend
+    from roft_sim.scenario import load_scenario
+
+    backend = require_gl_backend(os.environ)
     scenario = load_scenario(shipped_scenarios_dir() / "ci" / "cracker_box.toml")
     duration = frames / scenario.fps + 1.0
     scenario = dataclasses.replace(
@@ -126,7 +140,7 @@ def memory_child(frames: int) -> None:
         summary = generate_dataset(
             [scenario],
             out,
-            GenerationOptions(format="fast-ycb", progress=False, gl_backend=BACKEND),
+            GenerationOptions(format="fast-ycb", progress=False, gl_backend=backend),
             overrides=ScenarioOverrides(frames=frames, resolution=(96, 72)),
         )
         wall = time.perf_counter() - t0
@@ -137,45 +151,169 @@ def memory_child(frames: int) -> None:
         shutil.rmtree(out, ignore_errors=True)
 
 
-def memory(args: argparse.Namespace) -> None:
+def child_main(spec: dict[str, Any]) -> None:
+    resolution = tuple(spec["resolution"])
+    cache = Path(spec["cache"])
+    if spec["kind"] == "render":
+        result: Any = child_render(resolution, spec["frames"], cache)
+    else:
+        result = child_generate(resolution, spec["frames"], spec["workers"], spec["format"], cache)
+    print("RESULT " + json.dumps(result))
+
+
+# ----------------------------------------------------------------------------- the driver
+@dataclasses.dataclass
+class Tree:
+    """A version of the package to measure: its label and the folder put on PYTHONPATH."""
+
+    label: str
+    pythonpath: Path
+    cache: Path
+
+
+def run_child(tree: Tree, spec: dict[str, Any]) -> Any:
+    env = dict(os.environ, PYTHONPATH=str(tree.pythonpath))
+    res = subprocess.run(
+        [sys.executable, __file__, "--child", json.dumps({**spec, "cache": str(tree.cache)})],
+        capture_output=True,
+        text=True,
+        env=env,
+        cwd=tempfile.gettempdir(),  # the tree on PYTHONPATH, not the current folder, is imported
+    )
+    if res.returncode != 0:
+        raise RuntimeError(f"{tree.label} child {spec} failed:\n{res.stderr[-3000:]}")
+    line = [ln for ln in res.stdout.splitlines() if ln.startswith("RESULT ")][-1]
+    return json.loads(line[len("RESULT ") :])
+
+
+def load1() -> float:
+    return os.getloadavg()[0]
+
+
+def measure(
+    trees: list[Tree], spec: dict[str, Any], repeats: int, pick: int | None
+) -> dict[str, float]:
+    """Median per tree of ``repeats`` interleaved runs (``pick`` = index into a tuple result)."""
+    values: dict[str, list[float]] = {t.label: [] for t in trees}
+    for _ in range(repeats):
+        for tree in trees:
+            result = run_child(tree, spec)
+            values[tree.label].append(result if pick is None else result[pick])
+    return {label: statistics.median(v) for label, v in values.items()}
+
+
+def print_row(name: str, medians: dict[str, float], trees: list[Tree]) -> None:
+    cells = " ".join(f"{medians[t.label]:>9.2f}" for t in trees)
+    ratio = f"{medians[trees[1].label] / medians[trees[0].label]:>7.2f}x" if len(trees) == 2 else ""
+    print(f"{name:<30} {cells} {ratio} {load1():>6.2f}", flush=True)
+
+
+def throughput(args: argparse.Namespace, trees: list[Tree]) -> None:
+    now = trees[-1].label
+    heads = " ".join(f"{t.label:>9}" for t in trees)
+    print(
+        f"{os.cpu_count()} CPUs, load average (1, 5, 15 min) at start "
+        f"{', '.join(f'{x:.2f}' for x in os.getloadavg())}; fast_ycb 003_cracker_box, default "
+        f"networks, {args.format}; medians over {args.repeats} interleaved runs [frames/s]"
+    )
+    print(f"{'':<30} {heads} {'ratio' if len(trees) == 2 else '':>8} {'load1':>6}")
+    for text in args.resolutions:
+        w, h = (int(v) for v in text.lower().split("x"))
+        n = args.frames or (48 if w * h <= 640 * 480 else 24)
+        base = {"resolution": [w, h], "format": args.format}
+        print(f"-- {text}, N = {n}")
+        for tree in trees:  # fill each tree's cache (object and scene textures): unmeasured
+            run_child(tree, {**base, "kind": "generate", "frames": 2, "workers": 1})
+        render = measure(trees, {**base, "kind": "render", "frames": n}, args.repeats, None)
+        print_row("render+seg+flow", render, trees)
+        steady: dict[int, dict[str, float]] = {}
+        for workers in args.workers:
+            spec = {**base, "kind": "generate", "frames": n, "workers": workers}
+            values: dict[str, list[tuple[float, float]]] = {t.label: [] for t in trees}
+            for _ in range(args.repeats):
+                for tree in trees:
+                    values[tree.label].append(tuple(run_child(tree, spec)))
+            steady[workers] = {k: statistics.median(r[0] for r in v) for k, v in values.items()}
+            wall = {k: statistics.median(r[1] for r in v) for k, v in values.items()}
+            print_row(f"generate W={workers} steady", steady[workers], trees)
+            print_row(f"generate W={workers} wall", wall, trees)
+        short = None
+        if 2 in steady and args.short_frames:
+            spec = {**base, "kind": "generate", "frames": args.short_frames, "workers": 2}
+            short = measure(trees, spec, args.repeats, 1)
+            print_row(f"short N={args.short_frames} W=2 wall", short, trees)
+        if 1 in steady:
+            print(f"   W=1 steady / render+seg+flow ({now}): {steady[1][now] / render[now]:.2f}")
+        if short is not None:
+            print(f"   short / W=2 steady ({now}): {short[now] / steady[2][now]:.2f}")
+
+
+def memory(args: argparse.Namespace, tree: Tree) -> None:
     print(
         "\npeak RSS of a fresh process generating one sequence (ci cracker box, 96x72, fast-ycb, "
         "default networks, in-process):"
     )
-    for frames in (args.short_frames, args.long_frames):
+    for frames in (args.short_frames_memory, args.long_frames):
         res = subprocess.run(
             [sys.executable, __file__, "--memory-child", str(frames)],
             capture_output=True,
             text=True,
             check=True,
+            env=dict(os.environ, PYTHONPATH=str(tree.pythonpath)),
         )
         n, peak, wall = res.stdout.split()[-3:]
         print(
-            f"  {int(n):>6} frames: peak RSS {float(peak):7.1f} MiB ({float(wall):.0f} s)",
+            f"  {int(n):>6} frames: peak RSS {float(peak):7.1f} MiB ({float(wall):.0f} s, "
+            f"load1 {load1():.2f})",
             flush=True,
         )
+
+
+def baseline_tree(ref: str, scratch: Path) -> Tree:
+    """The package at git commit ``ref`` of this repository, extracted under ``scratch``."""
+    folder = scratch / "baseline"
+    folder.mkdir()
+    archive = subprocess.run(
+        ["git", "-C", str(REPO), "archive", ref, "roft_sim"], capture_output=True, check=True
+    ).stdout
+    subprocess.run(["tar", "-x", "-C", str(folder)], input=archive, check=True)
+    return Tree(label=ref[:9], pythonpath=folder, cache=scratch / "cache_baseline")
 
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--resolutions", nargs="+", default=["640x480", "1280x720"])
-    p.add_argument("--formats", nargs="+", default=list(FORMATS), choices=FORMATS)
+    p.add_argument("--format", default="fast-ycb", choices=("fast-ycb", "bop", "hdf5"))
     p.add_argument("--workers", nargs="+", type=int, default=[1, 2])
-    p.add_argument("--frames", type=int, help="N (default 12 at <= 640x480, else 8)")
+    p.add_argument("--frames", type=int, help="N (default 48 at <= 640x480, else 24)")
+    p.add_argument("--short-frames", type=int, default=24, help="frames of the short run")
     p.add_argument("--repeats", type=int, default=3)
-    p.add_argument("--short-frames", type=int, default=150)
-    p.add_argument("--long-frames", type=int, default=1500)
+    p.add_argument("--baseline-ref", help="git commit to measure side by side (e.g. main)")
+    p.add_argument("--short-frames-memory", type=int, default=150)
+    p.add_argument("--long-frames", type=int, default=3000)
     p.add_argument("--skip-throughput", action="store_true")
     p.add_argument("--skip-memory", action="store_true")
+    p.add_argument("--child", help=argparse.SUPPRESS)
     p.add_argument("--memory-child", type=int, help=argparse.SUPPRESS)
     args = p.parse_args()
+    if args.child is not None:
+        child_main(json.loads(args.child))
+        return
     if args.memory_child is not None:
         memory_child(args.memory_child)
         return
-    if not args.skip_throughput:
-        throughput(args)
-    if not args.skip_memory:
-        memory(args)
+    scratch = Path(tempfile.mkdtemp(prefix="bench_generate_trees_"))
+    try:
+        now = Tree(label="now", pythonpath=REPO, cache=scratch / "cache_now")
+        trees = (
+            [now] if args.baseline_ref is None else [baseline_tree(args.baseline_ref, scratch), now]
+        )
+        if not args.skip_throughput:
+            throughput(args, trees)
+        if not args.skip_memory:
+            memory(args, now)
+    finally:
+        shutil.rmtree(scratch, ignore_errors=True)
 
 
 if __name__ == "__main__":

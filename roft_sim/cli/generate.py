@@ -117,6 +117,13 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         default=32,
         help="most frames per work unit handed to a worker (default 32)",
     )
+    parser.add_argument(
+        "--png-compression",
+        type=int,
+        metavar="LEVEL",
+        help="zlib level 0-9 of the PNG files (fast-ycb, bop; default 1, the fastest; 3 gives "
+        "files about 4 %% smaller, encoded 1.6x slower; docs/formats.md)",
+    )
     parser.add_argument("--overwrite", action="store_true", help="empty a non-empty --out first")
     parser.add_argument(
         "--resume",
@@ -252,6 +259,7 @@ def _run(args: argparse.Namespace) -> int:
         gl_backend=backend,
         progress=not (args.no_progress or args.quiet),
         shard=shard,
+        **({} if args.png_compression is None else {"png_compression": args.png_compression}),
     )
     if args.out.exists() and not args.out.is_dir():
         raise ConfigError(f"output {str(args.out)!r} is a file; give a directory path")

@@ -234,7 +234,8 @@ class BopWriter(StreamingWriter):
 
     def _write_frame_files(self, frame: DatasetFrame) -> dict[str, Any]:
         seq, k = self.sequence_path, frame.k
-        atomic_write_bytes(f"{seq}/rgb/{k:06d}.png", encode_png_rgb(frame.rgb))
+        png = self.settings.png_compression  # zlib level of every PNG of the frame
+        atomic_write_bytes(f"{seq}/rgb/{k:06d}.png", encode_png_rgb(frame.rgb, level=png))
         q = np.rint(frame.depth_m.astype(np.float64) * (1000.0 / self.depth_scale_mm))
         if q.size and q.max() > 65535:
             raise ValueError(
@@ -242,13 +243,15 @@ class BopWriter(StreamingWriter):
                 f"depth with depth_scale {self.depth_scale_mm} mm "
                 f"({65535 * self.depth_scale_mm / 1000:.4f} m); raise depth_scale_mm"
             )
-        atomic_write_bytes(f"{seq}/depth/{k:06d}.png", encode_png_u16(q.astype(np.uint16)))
+        atomic_write_bytes(
+            f"{seq}/depth/{k:06d}.png", encode_png_u16(q.astype(np.uint16), level=png)
+        )
         extra: dict[str, Any] = {"gt_info": None}
         if frame.gt_mask is not None:
             full = frame.gt_mask_full if frame.gt_mask_full is not None else frame.gt_mask
-            atomic_write_bytes(f"{seq}/mask/{k:06d}_000000.png", encode_png_mask(full))
+            atomic_write_bytes(f"{seq}/mask/{k:06d}_000000.png", encode_png_mask(full, level=png))
             atomic_write_bytes(
-                f"{seq}/mask_visib/{k:06d}_000000.png", encode_png_mask(frame.gt_mask)
+                f"{seq}/mask_visib/{k:06d}_000000.png", encode_png_mask(frame.gt_mask, level=png)
             )
             n_all, n_visib = int(full.sum()), int(frame.gt_mask.sum())
             extra["gt_info"] = {
@@ -266,13 +269,13 @@ class BopWriter(StreamingWriter):
             )
             valid_path = f"{seq}/extras/flow_valid/{name}/{k:06d}.png"
             if flow.valid is not None:
-                atomic_write_bytes(valid_path, encode_png_mask(flow.valid))
+                atomic_write_bytes(valid_path, encode_png_mask(flow.valid, level=png))
             else:
                 remove_file(valid_path)
         for name, mask in frame.detector_masks.items():
             path = f"{seq}/extras/masks/{name}/{k:06d}.png"
             if mask is not None:
-                atomic_write_bytes(path, encode_png_mask(mask))
+                atomic_write_bytes(path, encode_png_mask(mask, level=png))
             else:
                 remove_file(path)
         return extra

@@ -121,7 +121,8 @@ class FastYcbWriter(StreamingWriter):
 
     def _write_frame_files(self, frame: DatasetFrame) -> dict[str, Any]:
         seq, k = self.sequence_path, frame.k
-        atomic_write_bytes(f"{seq}/rgb/{k}.png", encode_png_rgb(frame.rgb))
+        png = self.settings.png_compression  # zlib level of every PNG of the frame
+        atomic_write_bytes(f"{seq}/rgb/{k}.png", encode_png_rgb(frame.rgb, level=png))
         atomic_write_bytes(f"{seq}/depth/{k}.float", encode_depth_float(frame.depth_m))
         for name, flow in frame.flows.items():
             encoding = self.settings.flow_encoding(name)
@@ -131,7 +132,7 @@ class FastYcbWriter(StreamingWriter):
             )
             valid_path = f"{seq}/optical_flow_valid/{name}/{k}.png"
             if flow.valid is not None:
-                atomic_write_bytes(valid_path, encode_png_mask(flow.valid))
+                atomic_write_bytes(valid_path, encode_png_mask(flow.valid, level=png))
             else:
                 remove_file(valid_path)
         masks = {GT_MASK_SET: frame.gt_mask, GT_FULL_MASK_SET: frame.gt_mask_full}
@@ -139,7 +140,7 @@ class FastYcbWriter(StreamingWriter):
         for name, mask in masks.items():
             path = self._mask_path(name, k)
             if mask is not None:
-                atomic_write_bytes(path, encode_png_mask(mask))
+                atomic_write_bytes(path, encode_png_mask(mask, level=png))
             else:
                 remove_file(path)
         return {}

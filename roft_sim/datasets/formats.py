@@ -15,6 +15,7 @@ from roft_sim.datasets.fast_ycb import PARTS_DIR_NAME, FastYcbSequence, FastYcbW
 from roft_sim.datasets.fast_ycb import is_fast_ycb_sequence as _is_fast_ycb
 from roft_sim.datasets.frames import GT_FULL_MASK_SET, DatasetFrame, FlowEncoding, SequenceWriter
 from roft_sim.datasets.hdf5 import Hdf5Sequence, Hdf5Writer
+from roft_sim.datasets.image_files import PNG_COMPRESSION
 from roft_sim.datasets.metadata import read_json
 from roft_sim.datasets.writer_base import RESERVED_METADATA_KEYS, WriterSettings, model_digest
 from roft_sim.errors import ConfigError, DatasetFormatError, located
@@ -54,6 +55,7 @@ def open_writer(
     bop_obj_id: int | None = None,
     compression: Literal["gzip", "lzf"] | None = None,
     compression_level: int | None = None,
+    png_compression: int = PNG_COMPRESSION,
 ) -> SequenceWriter:
     """Opens a streaming writer for one sequence.
 
@@ -76,6 +78,8 @@ def open_writer(
         bop_obj_id: BOP only: ``obj_id`` (default: the YCB-V id of the object, else 1).
         compression: HDF5 only: ``gzip`` (default) or ``lzf``.
         compression_level: HDF5 only: gzip level 1-9 (default 4).
+        png_compression: zlib level 0-9 of the PNG files (fast-ycb, bop; default
+            :data:`~roft_sim.datasets.image_files.PNG_COMPRESSION`).
 
     Returns:
         A picklable :class:`~roft_sim.datasets.SequenceWriter`.
@@ -109,6 +113,7 @@ def open_writer(
         flow_encodings=dict(flow_encodings or {}),
         options=options,
         model_digest=model_digest(object_model),
+        png_compression=png_compression,
     )
     writer_types: dict[str, type[FastYcbWriter | BopWriter | Hdf5Writer]] = {
         "fast-ycb": FastYcbWriter,

@@ -32,6 +32,7 @@ import numpy as np
 from roft_sim.config_files import jsonable
 from roft_sim.datasets.atomic_files import atomic_write_text, remove_temp_files
 from roft_sim.datasets.frames import FLOW_ENCODINGS, DatasetFrame, check_set_name
+from roft_sim.datasets.image_files import PNG_COMPRESSION, check_png_compression
 from roft_sim.datasets.metadata import (
     COMMON_CONVENTIONS,
     FORMAT_VERSION,
@@ -92,6 +93,9 @@ class WriterSettings:
     flow_encodings: Mapping[str, str] = field(default_factory=dict)
     options: Mapping[str, Any] = field(default_factory=dict)
     model_digest: str | None = None
+    png_compression: int = PNG_COMPRESSION
+    """zlib level 0-9 of the sequence's PNG files (fast-ycb, bop); part of the settings so that a
+    resumed sequence is written with the level it was started with."""
 
     def __post_init__(self) -> None:
         if not re.match(r"^[A-Za-z0-9][A-Za-z0-9_.\-]*$", self.sequence_name):
@@ -120,6 +124,7 @@ class WriterSettings:
                 "rename them (e.g. put them under 'scenario' or 'config')"
             )
         dumps_json(self.metadata)  # fails early on NaN or non-serialisable values
+        check_png_compression(self.png_compression)
 
     def to_json(self) -> dict[str, Any]:
         out: dict[str, Any] = jsonable(self)

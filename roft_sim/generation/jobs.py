@@ -22,6 +22,7 @@ import numpy as np
 
 from roft_sim.config_files import jsonable
 from roft_sim.datasets import SequenceWriter, open_sequence, open_writer
+from roft_sim.datasets.image_files import PNG_COMPRESSION
 from roft_sim.datasets.metadata import dumps_json
 from roft_sim.errors import ConfigError
 from roft_sim.scenario import Scenario
@@ -244,6 +245,7 @@ def prepare_jobs(
     gl_backend: str | None,
     prepare_output: Callable[[Path], Any] | None = None,
     shard_run: bool = False,
+    png_compression: int = PNG_COMPRESSION,
 ) -> list[SequenceJob]:
     """Opens one writer per scenario (see the module doc). ``prepare_output(out_dir)`` is
     called after every check and before the first writer opens.
@@ -294,6 +296,7 @@ def prepare_jobs(
             "metadata": metadata,
             "object_model": assets.model,
             "flow_encodings": scenario.networks.flow_encodings,
+            "png_compression": png_compression,
         }
         if shard_run:
             writer = _open_shared_writer(fmt, out_dir, writer_args)

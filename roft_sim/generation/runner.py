@@ -17,12 +17,15 @@ from __future__ import annotations
 import logging
 import socket
 import time
+from collections import deque
 from collections.abc import Callable, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
 from roft_sim.datasets import DATASET_FORMATS
+from roft_sim.datasets.image_files import PNG_COMPRESSION, check_png_compression
 from roft_sim.errors import ConfigError, RoftSimError
 from roft_sim.executors import (
     Executor,
@@ -89,6 +92,15 @@ class GenerationOptions:
     """Generate only this shard's frames (``--shard i/N``; :func:`plan_shard_units`) into an
     output other shards write at the same time: implies resuming, finalizes nothing. None = the
     whole run."""
+    png_compression: int = PNG_COMPRESSION
+    """zlib level 0-9 of the PNG files (fast-ycb, bop): 1 (default) is the fastest that still
+    compresses; 3 (the level before) writes files about 4 % smaller in about 1.6x the encoding
+    time (docs/formats.md, "PNG compression"). Bytes depend on it; a resumed sequence keeps the
+    level it was started with."""
+    writer_threads: int = 1
+    """Threads per worker that encode and write frames while the next frame is generated
+    (OpenCV's PNG encoder, zlib and file writes release the GIL); 0 = write on the generating
+    thread. At most ``writer_threads + 1`` generated frames wait in memory per worker."""
 
     def __post_init__(self) -> None:
         if self.format not in DATASET_FORMATS:
@@ -100,6 +112,12 @@ class GenerationOptions:
             raise ConfigError(f"--workers must be >= 1, got {self.workers}")
         if self.chunk_frames < 1:
             raise ConfigError(f"--chunk-frames must be >= 1, got {self.chunk_frames}")
+        check_png_compression(self.png_compression)
+        if self.writer_threads < 0:
+            raise ConfigError(
+                f"writer_threads must be >= 0 (0 = write on the generating thread), got "
+                f"{self.writer_threads}"
+            )
         if self.stop_after_frames is not None and self.stop_after_frames < 0:
             raise ConfigError(f"stop_after_frames must be >= 0, got {self.stop_after_frames}")
         if self.start_method not in ("spawn", "forkserver"):
@@ -227,18 +245,41 @@ def run_work_unit(
     generator: Any,
     *,
     report: Callable[[int], None] | None = None,
+    writer_threads: int = 1,
 ) -> int:
     """Generates and writes the frames of one unit with a generator of ``job``'s scenario.
+
+    Frame k is encoded and written on one of ``writer_threads`` threads while frame k+1 is
+    generated; at most ``writer_threads`` frames wait for a writer, so memory stays flat. A
+    frame is reported (``report(1)``) once its files are written, in frame order. Each frame's
+    files are written atomically by the writer, so the bytes do not depend on the threads.
 
     Returns:
         Frames written.
     """
+    frames = generator.frames(unit.start, unit.stop)
     written = 0
-    for frame in generator.frames(unit.start, unit.stop):
-        job.writer.write_frame(frame)
-        written += 1
-        if report is not None:
-            report(1)
+    if writer_threads == 0:
+        for frame in frames:
+            job.writer.write_frame(frame)
+            written += 1
+            if report is not None:
+                report(1)
+        return written
+    with ThreadPoolExecutor(writer_threads, thread_name_prefix="roft-sim-writer") as pool:
+        queued: deque[Future[None]] = deque()
+        for frame in frames:
+            queued.append(pool.submit(job.writer.write_frame, frame))
+            while len(queued) > writer_threads or (queued and queued[0].done()):
+                queued.popleft().result()
+                written += 1
+                if report is not None:
+                    report(1)
+        while queued:
+            queued.popleft().result()
+            written += 1
+            if report is not None:
+                report(1)
     return written
 
 
@@ -266,7 +307,11 @@ def _worker_run(unit: WorkUnit) -> int:
             "with the WorkerSetup of generate_dataset)"
         )
     return run_work_unit(
-        unit, _STATE.jobs[unit.sequence], _STATE.generator(unit.sequence), report=report_progress
+        unit,
+        _STATE.jobs[unit.sequence],
+        _STATE.generator(unit.sequence),
+        report=report_progress,
+        writer_threads=_STATE.options.writer_threads,
     )
 
 
@@ -371,7 +416,6 @@ def generate_dataset(
     if not scenarios:
         raise ConfigError("no scenario to generate; give at least one scenario file or a preset")
     out = Path(out_dir)
-    shard = options.shard
     resolved = [overrides.apply(s) for s in scenarios]
     jobs = prepare_jobs(
         resolved,
@@ -380,14 +424,35 @@ def generate_dataset(
         sequence_names=[sequence_name_for(s, sequence_naming) for s in resolved],
         overrides=overrides,
         preset=preset,
-        resume=options.resume or shard is not None,
+        resume=options.resume or options.shard is not None,
         assets_dir=options.assets_dir,
         cache_dir=options.cache_dir,
         gl_backend=options.gl_backend,
         prepare_output=prepare_output,
-        shard_run=shard is not None,
+        shard_run=options.shard is not None,
+        png_compression=options.png_compression,
     )
-    if shard is None:
+    units = _planned_units(jobs, options)
+    progress = _RunProgress(jobs, finalize=options.shard is None)
+    if options.shard is None:
+        progress.finalize_complete_sequences()
+    if executor is None:
+        executor = _default_executor(options, len(units))
+    if units:
+        _run_units(executor, units, jobs, options, progress, on_frames)
+    return GenerationSummary(
+        sequences=progress.results(),
+        wall_s=time.perf_counter() - t0,
+        workers=executor.workers if units else 1,
+        format=options.format,
+        shard=options.shard,
+    )
+
+
+def _planned_units(jobs: Sequence[SequenceJob], options: GenerationOptions) -> list[WorkUnit]:
+    """The work units of the missing frames (the shard's only, with ``options.shard``), cut to
+    ``options.stop_after_frames``."""
+    if options.shard is None:
         planned = plan_work_units(
             [j.missing_frames for j in jobs], chunk_frames=options.chunk_frames
         )
@@ -397,59 +462,75 @@ def generate_dataset(
             [j.sequence_name for j in jobs],
             [j.missing_frames for j in jobs],
             chunk_frames=options.chunk_frames,
-            shard=shard,
+            shard=options.shard,
         )
-    units = _budgeted(planned, options.stop_after_frames)
-    generated = [0] * len(jobs)
-    left = [len(j.missing_frames) for j in jobs]
-    paths: list[Path | None] = [None] * len(jobs)
+    return _budgeted(planned, options.stop_after_frames)
 
-    def finalize(i: int) -> None:
-        paths[i] = Path(jobs[i].writer.finalize())
-        _log.debug("finished %s", paths[i])
 
-    def on_unit_done(unit: WorkUnit, n: int) -> None:
-        generated[unit.sequence] += n
-        left[unit.sequence] -= n
-        if left[unit.sequence] == 0 and shard is None:
-            finalize(unit.sequence)
+class _RunProgress:
+    """Frames generated and left per sequence; finalizes a sequence when its last frame is in
+    (unless ``finalize`` is off: shard runs finalize nothing)."""
 
-    if shard is None:
-        for i, job in enumerate(jobs):
+    def __init__(self, jobs: Sequence[SequenceJob], *, finalize: bool) -> None:
+        self.jobs = jobs
+        self.finalize = finalize
+        self.generated = [0] * len(jobs)
+        self.left = [len(j.missing_frames) for j in jobs]
+        self.paths: list[Path | None] = [None] * len(jobs)
+
+    def _finalize(self, i: int) -> None:
+        self.paths[i] = Path(self.jobs[i].writer.finalize())
+        _log.debug("finished %s", self.paths[i])
+
+    def finalize_complete_sequences(self) -> None:
+        """Finalizes the sequences with no frame missing (a resumed, already complete run)."""
+        for i, job in enumerate(self.jobs):
             if not job.missing_frames:
-                finalize(i)
-    total = sum(u.n_frames for u in units)
-    if executor is None:
-        executor = _default_executor(options, len(units))
-    if units:
-        desc = "generate" if shard is None else f"generate shard {shard}"
-        with _progress_bar(total, options.progress, desc) as bar:
+                self._finalize(i)
 
-            def report(n: int) -> None:
-                bar.update(n)
-                if on_frames is not None:
-                    on_frames(n)
+    def unit_done(self, unit: WorkUnit, n: int) -> None:
+        self.generated[unit.sequence] += n
+        self.left[unit.sequence] -= n
+        if self.left[unit.sequence] == 0 and self.finalize:
+            self._finalize(unit.sequence)
 
-            setup = WorkerSetup(_init_worker, (list(jobs), options), teardown=_close_worker)
-            try:
-                for unit, n in executor.map_unordered(
-                    _worker_run, units, setup=setup, on_progress=report
-                ):
-                    on_unit_done(unit, n)
-            except WorkUnitError as e:
-                raise _generation_error(e, jobs) from e
-    return GenerationSummary(
-        sequences=tuple(
+    def results(self) -> tuple[SequenceResult, ...]:
+        return tuple(
             SequenceResult(
                 name=j.sequence_name,
-                path=paths[i],
+                path=self.paths[i],
                 n_frames=j.n_frames,
-                frames_generated=generated[i],
+                frames_generated=self.generated[i],
             )
-            for i, j in enumerate(jobs)
-        ),
-        wall_s=time.perf_counter() - t0,
-        workers=executor.workers if units else 1,
-        format=options.format,
-        shard=shard,
-    )
+            for i, j in enumerate(self.jobs)
+        )
+
+
+def _run_units(
+    executor: Executor,
+    units: list[WorkUnit],
+    jobs: Sequence[SequenceJob],
+    options: GenerationOptions,
+    progress: _RunProgress,
+    on_frames: Callable[[int], None] | None,
+) -> None:
+    """Runs the units on the executor's workers with a progress bar; a failed or dead worker
+    becomes a :class:`GenerationError`."""
+    shard = options.shard
+    desc = "generate" if shard is None else f"generate shard {shard}"
+    total = sum(u.n_frames for u in units)
+    with _progress_bar(total, options.progress, desc) as bar:
+
+        def report(n: int) -> None:
+            bar.update(n)
+            if on_frames is not None:
+                on_frames(n)
+
+        setup = WorkerSetup(_init_worker, (list(jobs), options), teardown=_close_worker)
+        try:
+            for unit, n in executor.map_unordered(
+                _worker_run, units, setup=setup, on_progress=report
+            ):
+                progress.unit_done(unit, n)
+        except WorkUnitError as e:
+            raise _generation_error(e, jobs) from e

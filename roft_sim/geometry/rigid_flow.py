@@ -61,6 +61,11 @@ def rigid_flow(
 ) -> tuple[NDArray[np.float32], NDArray[np.bool_]]:
     """Flow of every pixel of the earlier frame and its validity.
 
+    Computed in float32, body by body, on each body's bounding box only (few pixels for the
+    object and the hand); a body that does not move (an identity motion: the static world seen
+    by a static camera) needs no projection at all: its flow is exactly 0 and only the occlusion
+    test is run, pixel on pixel.
+
     Args:
         intrinsics: camera of both frames.
         depth_from_m: (H, W) z-depth of the earlier frame [m], 0 = none.
@@ -73,7 +78,7 @@ def rigid_flow(
     Returns:
         flow (H, W, 2) float32 ``(du, dv)`` [px] (0 where invalid), valid (H, W) bool.
     """
-    depth = np.asarray(depth_from_m, dtype=np.float64)
+    depth = np.asarray(depth_from_m, dtype=np.float32)
     body = np.asarray(body_index)
     M = np.asarray(motions, dtype=np.float64)
     if depth.shape != intrinsics.shape or body.shape != intrinsics.shape:
@@ -81,7 +86,7 @@ def rigid_flow(
             f"depth {depth.shape} and body_index {body.shape} must match the camera "
             f"{intrinsics.shape}"
         )
-    depth_to = None if depth_to_m is None else np.asarray(depth_to_m, dtype=np.float64)
+    depth_to = None if depth_to_m is None else np.asarray(depth_to_m, dtype=np.float32)
     if depth_to is not None and depth_to.shape != intrinsics.shape:
         raise ValueError(f"depth_to_m {depth_to.shape} must match the camera {intrinsics.shape}")
     if M.ndim != 3 or M.shape[1:] != (4, 4):
@@ -90,46 +95,83 @@ def rigid_flow(
         raise ValueError(
             f"body_index refers to body {body.max()} but only {M.shape[0]} motions given"
         )
-
-    ok = (depth > 0) & (body >= 0)
-    rows, cols = np.nonzero(ok)
-    z = depth[rows, cols]
-    x = (cols - intrinsics.cx_px) * (z / intrinsics.fx_px)
-    y = (rows - intrinsics.cy_px) * (z / intrinsics.fy_px)
-    b = body[rows, cols]
-    # One rigid map per body (few bodies): no per-pixel 4x4 matrices.
-    x_to, y_to, z_to = np.empty_like(z), np.empty_like(z), np.empty_like(z)
-    for i in range(M.shape[0]):
-        sel = b == i
-        if not sel.any():
-            continue
-        R, t = M[i, :3, :3], M[i, :3, 3]
-        xs, ys, zs = x[sel], y[sel], z[sel]
-        x_to[sel] = R[0, 0] * xs + R[0, 1] * ys + R[0, 2] * zs + t[0]
-        y_to[sel] = R[1, 0] * xs + R[1, 1] * ys + R[1, 2] * zs + t[1]
-        z_to[sel] = R[2, 0] * xs + R[2, 1] * ys + R[2, 2] * zs + t[2]
-    in_front = z_to > 0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        u_to = intrinsics.fx_px * x_to / z_to + intrinsics.cx_px
-        v_to = intrinsics.fy_px * y_to / z_to + intrinsics.cy_px
-    inside = (
-        in_front
-        & (u_to >= -0.5)
-        & (u_to < intrinsics.width_px - 0.5)
-        & (v_to >= -0.5)
-        & (v_to < intrinsics.height_px - 0.5)
-    )
-    if depth_to is not None:
-        tu = np.where(inside, np.rint(np.where(inside, u_to, 0.0)), 0).astype(np.int64)
-        tv = np.where(inside, np.rint(np.where(inside, v_to, 0.0)), 0).astype(np.int64)
-        d_seen = depth_to[tv, tu]
-        tol = occlusion_tolerance[0] + occlusion_tolerance[1] * z_to
-        occluded = (d_seen > 0) & (d_seen < z_to - tol)
-        inside &= ~occluded
     flow = np.zeros(intrinsics.shape + (2,), dtype=np.float32)
     valid = np.zeros(intrinsics.shape, dtype=bool)
-    r, c = rows[inside], cols[inside]
-    flow[r, c, 0] = u_to[inside] - c
-    flow[r, c, 1] = v_to[inside] - r
-    valid[r, c] = True
+    has_depth = depth > 0
+    for i in range(M.shape[0]):
+        on_body = has_depth & (body == i)
+        box = _bounding_box(on_body)
+        if box is None:
+            continue
+        if np.array_equal(M[i], _IDENTITY):
+            if depth_to is not None:
+                on_body &= ~_occluded_in_place(depth, depth_to, occlusion_tolerance)
+            valid |= on_body
+        else:
+            _moved_body_flow(
+                intrinsics, depth, on_body, M[i], box, depth_to, occlusion_tolerance, flow, valid
+            )
     return flow, valid
+
+
+_IDENTITY = np.eye(4)
+
+
+def _bounding_box(mask: NDArray[np.bool_]) -> tuple[slice, slice] | None:
+    """(rows, cols) slices of the smallest box holding every True pixel; None when none is."""
+    rows = np.flatnonzero(mask.any(axis=1))
+    if rows.size == 0:
+        return None
+    cols = np.flatnonzero(mask[rows[0] : rows[-1] + 1].any(axis=0))
+    return slice(int(rows[0]), int(rows[-1]) + 1), slice(int(cols[0]), int(cols[-1]) + 1)
+
+
+def _occluded_in_place(
+    depth: NDArray[np.float32], depth_to: NDArray[np.float32], tolerance: tuple[float, float]
+) -> NDArray[np.bool_]:
+    """Occlusion test of points that stay where they are (z_to = z, target = the same pixel)."""
+    tol = np.float32(tolerance[0]) + np.float32(tolerance[1]) * depth
+    return (depth_to > 0) & (depth_to < depth - tol)
+
+
+def _moved_body_flow(
+    intrinsics: CameraIntrinsics,
+    depth: NDArray[np.float32],
+    on_body: NDArray[np.bool_],
+    motion: NDArray[np.float64],
+    box: tuple[slice, slice],
+    depth_to: NDArray[np.float32] | None,
+    tolerance: tuple[float, float],
+    flow: NDArray[np.float32],
+    valid: NDArray[np.bool_],
+) -> None:
+    """Writes the flow and validity of one moving body's pixels (inside ``box``) in place."""
+    rs, cs = box
+    k = intrinsics
+    sel = on_body[rs, cs]
+    z = depth[rs, cs]
+    cols = np.arange(cs.start, cs.stop, dtype=np.float32)
+    rows = np.arange(rs.start, rs.stop, dtype=np.float32)[:, None]
+    xn = (cols - np.float32(k.cx_px)) / np.float32(k.fx_px)  # x / z of each column
+    yn = (rows - np.float32(k.cy_px)) / np.float32(k.fy_px)  # y / z of each row
+    R = motion[:3, :3].astype(np.float32)
+    t = motion[:3, 3].astype(np.float32)
+    x_to = z * (R[0, 0] * xn + R[0, 1] * yn + R[0, 2]) + t[0]
+    y_to = z * (R[1, 0] * xn + R[1, 1] * yn + R[1, 2]) + t[1]
+    z_to = z * (R[2, 0] * xn + R[2, 1] * yn + R[2, 2]) + t[2]
+    ok = sel & (z_to > 0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv_z = np.where(ok, np.float32(1.0) / z_to, np.float32(0.0))
+    u_to = np.float32(k.fx_px) * x_to * inv_z + np.float32(k.cx_px)
+    v_to = np.float32(k.fy_px) * y_to * inv_z + np.float32(k.cy_px)
+    ok &= (u_to >= -0.5) & (u_to < k.width_px - 0.5) & (v_to >= -0.5) & (v_to < k.height_px - 0.5)
+    if depth_to is not None:
+        tu = np.rint(np.where(ok, u_to, 0.0)).astype(np.intp)
+        tv = np.rint(np.where(ok, v_to, 0.0)).astype(np.intp)
+        d_seen = depth_to[tv, tu]
+        tol = np.float32(tolerance[0]) + np.float32(tolerance[1]) * z_to
+        ok &= ~((d_seen > 0) & (d_seen < z_to - tol))
+    out = flow[rs, cs]  # a view: other bodies' pixels in the box are left as they are
+    np.copyto(out[..., 0], u_to - cols, where=ok)
+    np.copyto(out[..., 1], v_to - rows, where=ok)
+    valid[rs, cs] |= ok

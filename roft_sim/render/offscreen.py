@@ -44,11 +44,14 @@ def z_depth_from_depth_buffer(buffer: F32, near_m: float, far_m: float) -> F32:
         near_m, far_m: the frustum's near and far distances [m] used for the render.
 
     Returns:
-        (H, W) float32 z-depth [m] (distance to the camera plane), 0 where nothing was drawn.
+        (H, W) float32 z-depth [m] (distance to the camera plane), 0 where nothing was drawn;
+        computed in float32 (relative error below 1e-6), in one new array.
     """
-    b = buffer.astype(np.float64)
-    z = (far_m * near_m) / (b * (far_m - near_m) + near_m)
-    return np.where(b > 0.0, z, 0.0).astype(np.float32)
+    z = np.multiply(buffer, np.float32(far_m - near_m), dtype=np.float32)
+    z += np.float32(near_m)
+    np.divide(np.float32(far_m * near_m), z, out=z)
+    z[buffer <= 0.0] = 0.0
+    return z
 
 
 @dataclass(frozen=True, slots=True)
@@ -195,16 +198,23 @@ class OffscreenRenderer:
         return z_depth_from_depth_buffer(buffer, float(cam.frustum_near), float(cam.frustum_far))
 
     def _geom_ids(self, id_colour: U8) -> I32:
-        """Geom ids from MuJoCo's id colours (``segid + 1`` packed little-endian in r, g, b)."""
-        code = id_colour.astype(np.int32)
-        segid = code[..., 0] | (code[..., 1] << 8) | (code[..., 2] << 16)
+        """Geom ids from MuJoCo's id colours (``segid + 1`` packed little-endian in r, g, b).
+
+        With fewer than 255 scene geoms every id fits in the red byte (a pixel whose green or
+        blue byte is set would name a segid beyond the scene: none is drawn), so one 8-bit
+        lookup does; larger scenes decode all three bytes."""
         n = self._scene.ngeom
-        lut = np.full(n + 1, -1, dtype=np.int32)
+        lut = np.full(max(n + 1, 256), -1, dtype=np.int32)
         geom_type = int(mujoco.mjtObj.mjOBJ_GEOM)
         for i in range(n):
             g = self._scene.geoms[i]
             if g.segid >= 0 and g.objtype == geom_type:
                 lut[g.segid + 1] = g.objid
+        lut[0] = -1
+        if n < 255:
+            return lut[id_colour[..., 0]]
+        code = id_colour.astype(np.int32)
+        segid = code[..., 0] | (code[..., 1] << 8) | (code[..., 2] << 16)
         segid = np.where(segid <= n, segid, 0)
         return lut[segid]
 

@@ -117,6 +117,7 @@ class SceneRenderer:
             scene=scenario.scene,
             render=scenario.render,
             rng=scenario.rng("scene_textures"),
+            texture_cache_dir=cache_dir,
         )
         self._data = mujoco.MjData(self.built.model)
         self._segmentation = segmentation

@@ -20,6 +20,7 @@ simulated. ``stat.extent`` is fixed to 1 so that ``vis.map.znear/zfar`` are in m
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Protocol
 
 import roft_sim.render  # noqa: F401  (chooses MUJOCO_GL before MuJoCo is imported)
@@ -29,6 +30,8 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
+import roft_sim.scene.textures
+from roft_sim.assets.texture_cache import cached_texture
 from roft_sim.errors import ConfigError
 from roft_sim.geometry import CameraIntrinsics
 from roft_sim.render.camera import QUAT_CV_MJ, mujoco_camera_params
@@ -169,6 +172,20 @@ def _frustum_half_extents(intrinsics: CameraIntrinsics, distance_m: float) -> tu
     return x / intrinsics.fx_px, y / intrinsics.fy_px
 
 
+def _scene_texture(
+    style: str, size_px: int, rng: np.random.Generator, cache_dir: Path | None
+) -> NDArray[np.uint8]:
+    """:func:`procedural_texture`, through the texture disk cache when there is one."""
+    return cached_texture(
+        cache_dir,
+        f"scene-{style}-{size_px}",
+        {"style": style, "size_px": size_px},
+        rng,
+        lambda r: procedural_texture(style, size_px, r),
+        code=roft_sim.scene.textures,
+    )
+
+
 def build_scene(
     *,
     intrinsics: CameraIntrinsics,
@@ -177,6 +194,7 @@ def build_scene(
     render: RenderConfig,
     rng: np.random.Generator,
     object_rgba: tuple[float, float, float, float] = (0.7, 0.7, 0.7, 1.0),
+    texture_cache_dir: Path | None = None,
 ) -> BuiltScene:
     """Builds and compiles the scene.
 
@@ -188,6 +206,8 @@ def build_scene(
         render: MSAA, clipping distances (the other options act at render time).
         rng: randomness of the procedural table and wall textures.
         object_rgba: colour of an untextured object mesh.
+        texture_cache_dir: asset cache holding the drawn table and wall textures
+            (:func:`roft_sim.assets.texture_cache.cached_texture`); None = draw them.
 
     Raises:
         ConfigError: the mesh is empty or MuJoCo rejects it (the message says why).
@@ -272,7 +292,9 @@ def build_scene(
         corners = np.array([[x0, y0, wall_z], [x0, y1, wall_z], [x1, y1, wall_z], [x1, y0, wall_z]])
         period = scene.background.texture_period_m
         texcoords = np.column_stack([corners[:, 0] / period, corners[:, 1] / period])
-        image = procedural_texture(scene.background.style, scene.background.texture_px, rng)
+        image = _scene_texture(
+            scene.background.style, scene.background.texture_px, rng, texture_cache_dir
+        )
         _quad(spec, "background", corners, texcoords, image)
     if scene.table.enabled:
         t = scene.table
@@ -288,7 +310,7 @@ def build_scene(
         texcoords = np.column_stack(
             [corners[:, 0] / t.texture_period_m, corners[:, 2] / t.texture_period_m]
         )
-        image = procedural_texture(t.style, t.texture_px, rng)
+        image = _scene_texture(t.style, t.texture_px, rng, texture_cache_dir)
         _quad(spec, "table", corners, texcoords, image)
 
     for i, light in enumerate(scene.lights):

@@ -246,3 +246,40 @@ def test_a_worker_that_loads_another_object_source_is_refused(tmp_path):
     state = _WorkerState([same], GenerationOptions(progress=False, cache_dir=tmp_path))
     assert state.generator(0) is state.generator(0)
     state.close()
+
+
+@pytest.mark.parametrize("writer_threads", [0, 3])
+def test_writer_threads_do_not_change_the_bytes(scenario, reference, tmp_path, writer_threads):
+    run_generate([scenario], tmp_path, writer_threads=writer_threads, chunk_frames=2)
+    assert tree_hashes(tmp_path) == reference
+
+
+def test_cached_scene_textures_give_the_same_bytes_cold_and_warm(scenario, reference, tmp_path):
+    cache = tmp_path / "cache"
+    for run in ("cold", "warm"):
+        run_generate([scenario], tmp_path / run, cache_dir=cache)
+        assert tree_hashes(tmp_path / run) == reference, run
+    assert len(list((cache / "textures").glob("*.png"))) == 2  # the table and the wall
+
+
+def test_png_compression_changes_the_bytes_not_the_images_and_a_resume_keeps_it(
+    scenario, reference, tmp_path
+):
+    from roft_sim.datasets import open_sequence
+
+    run_generate([scenario], tmp_path / "level3", png_compression=3)
+    level3 = tree_hashes(tmp_path / "level3")
+    name = scenario.name
+    assert level3[f"{name}/rgb/1.png"] != reference[f"{name}/rgb/1.png"]
+    assert level3[f"{name}/depth/1.float"] == reference[f"{name}/depth/1.float"]
+    small = (tmp_path / "level3" / name / "rgb" / "1.png").stat().st_size
+    run_generate([scenario], tmp_path / "level1")
+    fast = (tmp_path / "level1" / name / "rgb" / "1.png").stat().st_size
+    assert small < fast
+    a, b = open_sequence(tmp_path / "level3" / name), open_sequence(tmp_path / "level1" / name)
+    assert (a.rgb(1) == b.rgb(1)).all() and (a.mask(1, "gt") == b.mask(1, "gt")).all()
+    run_generate([scenario], tmp_path / "part", stop_after_frames=2, png_compression=3)
+    with pytest.raises(ConfigError, match="different settings"):
+        run_generate([scenario], tmp_path / "part", resume=True)
+    run_generate([scenario], tmp_path / "part", resume=True, png_compression=3)
+    assert tree_hashes(tmp_path / "part") == level3
