@@ -24,9 +24,21 @@ __all__ = [
     "add_input_arguments",
     "command_record",
     "print_metrics_table",
+    "resolve_invalid_policy",
 ]
 
 ORDER = 20
+AUTO_INVALID = "auto"
+"""``--invalid auto``: :data:`PAPER_INVALID` under the ``paper`` faults, else ``failure``."""
+PAPER_INVALID = "hold"
+"""The invalid-estimate policy of the ``paper`` fault preset: the reference's."""
+
+
+def resolve_invalid_policy(choice: str, faults_name: str) -> str:
+    """``--invalid``: ``auto`` becomes ``hold`` under the ``paper`` preset, else ``failure``."""
+    if choice != AUTO_INVALID:
+        return choice
+    return PAPER_INVALID if faults_name == "paper" else "failure"
 
 
 def add_input_arguments(parser: argparse.ArgumentParser, *, sweep: bool = False) -> None:
@@ -70,13 +82,24 @@ def add_input_arguments(parser: argparse.ArgumentParser, *, sweep: bool = False)
     )
     if not sweep:
         parser.add_argument("--seed", type=int, default=0, help="run seed (default 0)")
-    parser.add_argument(
-        "--invalid",
-        default="failure",
-        choices=("failure", "exclude", "as_given"),
-        help="how frames without a tracker pose are scored (default failure: ADD = inf, left "
-        "out of the RMSEs; exclude: dropped, as the reference does for detector misses)",
-    )
+    if sweep:
+        parser.add_argument(
+            "--invalid",
+            default="failure",
+            choices=("failure", "exclude", "as_given"),
+            help="how frames without a tracker pose are scored (default failure: ADD = inf, "
+            "left out of the RMSEs; exclude: dropped)",
+        )
+    else:
+        parser.add_argument(
+            "--invalid",
+            default=AUTO_INVALID,
+            choices=(AUTO_INVALID, "hold", "failure", "exclude", "as_given"),
+            help="how frames without a tracker pose are scored: hold (the reference's DOPE "
+            "policy: frames before the first pose left out, later gaps hold the last pose), "
+            "failure (ADD = inf, left out of the RMSEs), exclude (dropped), as_given; default "
+            "auto = hold under the paper faults, failure otherwise",
+        )
     parser.add_argument(
         "--no-rgb",
         action="store_true",
@@ -142,17 +165,18 @@ def build_run_options(args: argparse.Namespace, tracker: str, config: Any) -> An
     from roft_sim.faults import load_faults
     from roft_sim.harness import RunOptions
 
+    faults = load_faults(args.faults)
     return RunOptions(
         tracker=tracker,
         tracker_config=config,
-        faults=load_faults(args.faults),
+        faults=faults,
         flow=args.flow,
         poses=args.poses,
         masks=args.masks,
         init=args.init,
         seed=args.seed,
         include_rgb=not args.no_rgb,
-        invalid=args.invalid,
+        invalid=resolve_invalid_policy(args.invalid, faults.name),
     )
 
 
@@ -218,8 +242,12 @@ def _run(args: argparse.Namespace) -> int:
         command=command_record(args),
     )
     if args.json:
-        print(json.dumps({"out": str(out), "metrics": result.metrics}, indent=2))
+        summary = {"out": str(out), "invalid": options.invalid, "metrics": result.metrics}
+        print(json.dumps(summary, indent=2))
     else:
+        from roft_sim.metrics import policy_note
+
         print_metrics_table(result.metrics, "sequence")
+        print(policy_note(options.invalid))
         print(f"results in {out}", file=sys.stderr)
     return 0
