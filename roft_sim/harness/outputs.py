@@ -23,6 +23,10 @@ One folder per sequence (docs/running.md, "Outputs"):
 ``frame_errors.npz``       the per-frame errors behind the metrics (ADD, position, rotation,
                            velocity errors) and the metric scalars; pooled by sweeps and reports.
 ``metrics.json``           this sequence's metrics entry.
+``gt.tum``, ``estimate.tum``  with ``--tum``: TUM trajectories ``t tx ty tz qx qy qz qw`` (time
+                           [s] = k / fps, ``T_cam_obj`` position [m], unit quaternion scalar
+                           LAST) of the ground truth and of the frames with a valid estimate,
+                           for ``evo_ape tum gt.tum estimate.tum`` / ``evo_rpe``.
 =========================  ====================================================================
 
 Every file is written atomically (temporary file, then rename).
@@ -49,6 +53,7 @@ from roft_sim.datasets.fast_ycb_codec import (
 from roft_sim.errors import DatasetFormatError, located
 from roft_sim.faults.events import DeliveryEvent
 from roft_sim.geometry.se3 import v_o_from_v_obj
+from roft_sim.geometry.so3 import canonical_quat, quat_from_matrix, quat_xyzw_from_wxyz
 from roft_sim.harness.evaluation import SequenceEvaluation
 from roft_sim.harness.runner import SequenceRun
 from roft_sim.metrics import SequenceMetrics, held_estimate_index, step_time_stats
@@ -64,6 +69,10 @@ __all__ = [
     "DELIVERIES_FILE",
     "FRAME_ERRORS_FILE",
     "SEQUENCE_METRICS_FILE",
+    "GT_TUM_FILE",
+    "ESTIMATE_TUM_FILE",
+    "tum_text",
+    "write_tum_files",
     "write_json",
     "read_json",
     "pose_estimate_rows",
@@ -86,6 +95,8 @@ ESTIMATES_FILE = "estimates.npz"
 DELIVERIES_FILE = "deliveries.npz"
 FRAME_ERRORS_FILE = "frame_errors.npz"
 SEQUENCE_METRICS_FILE = "metrics.json"
+GT_TUM_FILE = "gt.tum"
+ESTIMATE_TUM_FILE = "estimate.tum"
 
 
 def write_json(path: Path, data: Any) -> None:
@@ -401,11 +412,46 @@ def load_frame_errors(path: str | Path) -> SequenceMetrics:
     )
 
 
+# ------------------------------------------------------------------------------------ TUM
+def tum_text(t_s: F64, T_cam_obj: F64) -> str:
+    """TUM trajectory text, one ``t tx ty tz qx qy qz qw`` line per pose (quaternion scalar
+    LAST, ``w >= 0``), as evo's ``file_interface.read_tum_trajectory_file`` reads it.
+
+    Args:
+        t_s: (N,) time stamps [s].
+        T_cam_obj: (N, 4, 4) poses [m].
+    """
+    t_s = np.asarray(t_s, dtype=np.float64)
+    T = np.asarray(T_cam_obj, dtype=np.float64)
+    if T.shape != (t_s.shape[0], 4, 4):
+        raise ValueError(f"need (N,) times and (N, 4, 4) poses, got {t_s.shape} and {T.shape}")
+    q = canonical_quat(quat_from_matrix(T[:, :3, :3])) if len(T) else np.zeros((0, 4))
+    rows = np.hstack([t_s[:, None], T[:, :3, 3], quat_xyzw_from_wxyz(q).reshape(-1, 4)])
+    return "# timestamp tx ty tz qx qy qz qw\n" + "".join(format_row(r) + "\n" for r in rows)
+
+
+def write_tum_files(folder: str | Path, run: SequenceRun) -> tuple[Path, ...]:
+    """Writes ``estimate.tum`` (frames with a valid, finite estimate) and, when the sequence has
+    ground truth, ``gt.tum`` into ``folder``; returns the paths written."""
+    folder = Path(folder)
+    t_s = np.arange(len(run)) / float(run.fps)
+    usable = np.array([_usable(e) for e in run.estimates], dtype=bool)
+    T_est = np.array([e.T_cam_obj for e in run.estimates], dtype=np.float64).reshape(-1, 4, 4)
+    paths = [folder / ESTIMATE_TUM_FILE]
+    atomic_write_text(paths[0], tum_text(t_s[usable], T_est[usable]))
+    if run.ground_truth is not None:
+        paths.append(folder / GT_TUM_FILE)
+        atomic_write_text(paths[1], tum_text(t_s, run.ground_truth.T_cam_obj))
+    return tuple(paths)
+
+
 # ------------------------------------------------------------------------------- all at once
 def write_sequence_outputs(
-    folder: str | Path, run: SequenceRun, evaluation: SequenceEvaluation
+    folder: str | Path, run: SequenceRun, evaluation: SequenceEvaluation, *, tum: bool = False
 ) -> Path:
-    """Writes every per-sequence file of ``run`` into ``folder`` (created); returns it."""
+    """Writes every per-sequence file of ``run`` into ``folder`` (created); returns it.
+
+    ``tum``: also the TUM trajectories (:func:`write_tum_files`)."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     _write_rows(folder / POSE_ESTIMATE_FILE, pose_estimate_rows(run.estimates))
@@ -425,4 +471,6 @@ def write_sequence_outputs(
     if evaluation.metrics is not None:
         save_frame_errors(folder / FRAME_ERRORS_FILE, evaluation.metrics)
     write_json(folder / SEQUENCE_METRICS_FILE, evaluation.entry())
+    if tum:
+        write_tum_files(folder, run)
     return folder

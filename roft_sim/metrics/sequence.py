@@ -105,8 +105,9 @@ def held_estimate_index(valid: ArrayLike) -> NDArray[np.int64]:
     ok = np.asarray(valid, dtype=bool)
     if ok.ndim != 1:
         raise ValueError(f"valid must have shape (N,), got {ok.shape}")
-    marks = np.where(ok, np.arange(ok.size), -1)
-    return np.maximum.accumulate(marks) if ok.size else np.zeros(0, dtype=np.int64)
+    marks = np.where(ok, np.arange(ok.size, dtype=np.int64), np.int64(-1))
+    held: NDArray[np.int64] = np.maximum.accumulate(marks)
+    return held
 
 
 def _rmse(norms: F64) -> float:
