@@ -54,6 +54,7 @@ from roft_sim.datasets.fast_ycb_codec import (
     encode_flow_float,
     format_number,
 )
+from roft_sim.datasets.folder_writer import FolderWriter, check_finished_folder
 from roft_sim.datasets.frames import GT_FULL_MASK_SET, DatasetFrame
 from roft_sim.datasets.image_files import (
     decode_png_mask,
@@ -64,7 +65,7 @@ from roft_sim.datasets.image_files import (
     encode_png_u16,
     read_file_bytes,
 )
-from roft_sim.datasets.metadata import dumps_json, read_json
+from roft_sim.datasets.metadata import read_json
 from roft_sim.datasets.model_files import (
     read_mesh_obj,
     read_mesh_ply_mm,
@@ -79,7 +80,7 @@ from roft_sim.datasets.reader_base import (
     read_flow_field,
     subfolder_names,
 )
-from roft_sim.datasets.writer_base import StreamingWriter, WriterSettings
+from roft_sim.datasets.writer_base import WriterSettings
 from roft_sim.errors import ConfigError, DatasetFormatError, located
 from roft_sim.geometry.camera import CameraIntrinsics
 from roft_sim.geometry.se3 import invert_transform, transform_from_rt
@@ -269,7 +270,7 @@ def _r_t_mm(T: Any) -> tuple[list[float], list[float]]:
     return T[:3, :3].ravel().tolist(), (T[:3, 3] * 1000.0 + 0.0).tolist()
 
 
-class BopWriter(StreamingWriter):
+class BopWriter(FolderWriter):
     """Streams one sequence into the BOP scene folder ``<root>/<sequence_name>/``.
 
     Options (``settings.options``): ``depth_scale_mm`` (default 0.1), ``obj_id`` (default: the
@@ -299,16 +300,7 @@ class BopWriter(StreamingWriter):
         self.depth_scale_mm = float(scale)
         self.obj_id = obj_id
         seq = Path(root) / bop_scene_folder(root, settings.sequence_name, scene_id)
-        super().__init__(
-            sequence_path=seq,
-            parts_dir=seq / ".roft_sim_parts",
-            settings=settings,
-            object_model=object_model,
-            resume=resume,
-        )
-
-    def _metadata_path(self) -> Path:
-        return self.sequence_path / "metadata.json"
+        super().__init__(seq, settings, object_model=object_model, resume=resume)
 
     def _format_options(self) -> dict[str, Any]:
         return {"depth_scale_mm": self.depth_scale_mm, "obj_id": self.obj_id}
@@ -453,11 +445,11 @@ class BopWriter(StreamingWriter):
                 out.write(path, "\n}\n")
             if metadata["ground_truth"]["velocities"]:
                 out.write(velocity_path, "\n}\n")
-        for name in metadata["sets"]["mask"]:
-            (seq / "extras" / "masks" / name).mkdir(parents=True, exist_ok=True)
-        for name in metadata["sets"]["flow"]:
-            (seq / "extras" / "flow" / name).mkdir(parents=True, exist_ok=True)
-        atomic_write_text(self._metadata_path(), dumps_json(metadata))
+        self._finish_folder(
+            metadata,
+            mask_set_dir=lambda name: seq / "extras" / "masks" / name,
+            flow_set_dir=lambda name: seq / "extras" / "flow" / name,
+        )
 
 
 class BopSequence(SequenceReaderBase):
@@ -484,11 +476,7 @@ class BopSequence(SequenceReaderBase):
         self, path: str | Path, *, object_name: str | None = None, fps: int | None = None
     ) -> None:
         self.path = Path(path)
-        if (self.path / ".roft_sim_parts").is_dir():
-            raise DatasetFormatError(
-                f"{located(self.path)} is an unfinished sequence (its writer did not finalize); "
-                "resume the generator or call finalize() on its writer"
-            )
+        check_finished_folder(self.path)
         meta_path = self.path / "metadata.json"
         self._metadata: dict[str, Any] = (
             read_json(meta_path, "metadata") if meta_path.is_file() else {}
