@@ -275,7 +275,7 @@ def _run(args: argparse.Namespace) -> int:
         args.out,
         options,
         overrides=overrides,
-        sequence_naming=PRESETS[preset].sequence_names if preset else "scenario",
+        sequence_naming=PRESETS[preset].sequence_names if preset else "auto",
         preset=preset,
         prepare_output=lambda out: prepare_output_dir(
             out, overwrite=args.overwrite, resume=args.resume or shared

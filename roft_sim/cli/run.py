@@ -12,10 +12,13 @@ import json
 import os
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 from roft_sim.cli.output_dirs import prepare_output_dir
 from roft_sim.errors import ConfigError, PluginError
+
+if TYPE_CHECKING:
+    from roft_sim.metrics import InvalidPolicy
 
 __all__ = [
     "register",
@@ -24,7 +27,28 @@ __all__ = [
     "add_input_arguments",
     "command_record",
     "print_metrics_table",
+    "resolve_invalid_policy",
 ]
+
+AUTO_INVALID = "auto"
+"""``--invalid auto``: :data:`PAPER_INVALID` under the ``paper`` faults, else ``failure``."""
+PAPER_INVALID = "hold"
+"""The invalid-estimate policy of the ``paper`` fault preset: the reference's."""
+
+
+def resolve_invalid_policy(choice: str, faults_name: str) -> InvalidPolicy:
+    """``--invalid``: ``auto`` becomes ``hold`` under the ``paper`` preset, else ``failure``.
+
+    Raises:
+        ConfigError: an unknown policy.
+    """
+    from roft_sim.metrics import INVALID_POLICIES
+
+    if choice == AUTO_INVALID:
+        choice = PAPER_INVALID if faults_name == "paper" else "failure"
+    if choice not in INVALID_POLICIES:
+        raise ConfigError(f"unknown --invalid {choice!r}; expected auto or {INVALID_POLICIES}")
+    return cast("InvalidPolicy", choice)
 
 
 def add_input_arguments(parser: argparse.ArgumentParser, *, sweep: bool = False) -> None:
@@ -68,13 +92,24 @@ def add_input_arguments(parser: argparse.ArgumentParser, *, sweep: bool = False)
     )
     if not sweep:
         parser.add_argument("--seed", type=int, default=0, help="run seed (default 0)")
-    parser.add_argument(
-        "--invalid",
-        default="failure",
-        choices=("failure", "exclude", "as_given"),
-        help="how frames without a tracker pose are scored (default failure: ADD = inf, left "
-        "out of the RMSEs; exclude: dropped, as the reference does for detector misses)",
-    )
+    if sweep:
+        parser.add_argument(
+            "--invalid",
+            default="failure",
+            choices=("failure", "exclude", "as_given"),
+            help="how frames without a tracker pose are scored (default failure: ADD = inf, "
+            "left out of the RMSEs; exclude: dropped)",
+        )
+    else:
+        parser.add_argument(
+            "--invalid",
+            default=AUTO_INVALID,
+            choices=(AUTO_INVALID, "hold", "failure", "exclude", "as_given"),
+            help="how frames without a tracker pose are scored: hold (the reference's DOPE "
+            "policy: frames before the first pose left out, later gaps hold the last pose), "
+            "failure (ADD = inf, left out of the RMSEs), exclude (dropped), as_given; default "
+            "auto = hold under the paper faults, failure otherwise",
+        )
     parser.add_argument(
         "--no-rgb",
         action="store_true",
@@ -117,6 +152,26 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         help="output folder (default: runs/<tracker>-<faults>); must be empty or absent",
     )
     parser.add_argument("--overwrite", action="store_true", help="empty a non-empty --out first")
+    parser.add_argument(
+        "--layout",
+        choices=("ours", "reference"),
+        default="ours",
+        help="ours (default): one folder per sequence; reference: also the tree the reference "
+        "ROFT evaluation (hsp-iit/roft evaluation/evaluate.py) scores unchanged, run from --out "
+        "(results/ROFT_results/fastycb/<config>/<object>/, dataset/fast-ycb/<object>/, "
+        "YCB_Video_Models/models/<object>/points.xyz; one sequence per object)",
+    )
+    parser.add_argument(
+        "--reference-config",
+        metavar="NAME",
+        help="the <config> folder of --layout reference (default: full_mask_<masks>_of_<flow>"
+        "_pose_<poses>, plus the reference's ablation suffix for ROFT or _<tracker>)",
+    )
+    parser.add_argument(
+        "--tum",
+        action="store_true",
+        help="also write TUM trajectories (gt.tum, estimate.tum per sequence) for evo_ape/evo_rpe",
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
     parser.set_defaults(func=_run)
@@ -140,17 +195,18 @@ def build_run_options(args: argparse.Namespace, tracker: str, config: Any) -> An
     from roft_sim.faults import load_faults
     from roft_sim.harness import RunOptions
 
+    faults = load_faults(args.faults)
     return RunOptions(
         tracker=tracker,
         tracker_config=config,
-        faults=load_faults(args.faults),
+        faults=faults,
         flow=args.flow,
         poses=args.poses,
         masks=args.masks,
         init=args.init,
         seed=args.seed,
         include_rgb=not args.no_rgb,
-        invalid=args.invalid,
+        invalid=resolve_invalid_policy(args.invalid, faults.name),
     )
 
 
@@ -185,6 +241,20 @@ def print_metrics_table(metrics: dict[str, dict[str, Any]], first_header: str) -
     print(text_table([Column("name", first_header, align="left"), *METRIC_COLUMNS], rows), end="")
 
 
+def _print_reference_note(tree: Any) -> None:
+    print(
+        f"reference tree in {tree.root} (config {tree.config_name}): from there, "
+        "python <roft>/evaluation/evaluate.py --experiment-name exp_fastycb_roft --metric-name mix",
+        file=sys.stderr,
+    )
+    if tree.missing_objects:
+        print(
+            f"note: the reference evaluation loads all six Fast-YCB objects; this tree lacks "
+            f"{', '.join(tree.missing_objects)} (merge the trees of runs over those)",
+            file=sys.stderr,
+        )
+
+
 def _run(args: argparse.Namespace) -> int:
     from roft_sim.errors import DatasetFormatError
     from roft_sim.harness import open_sequences, run_sequences
@@ -214,10 +284,24 @@ def _run(args: argparse.Namespace) -> int:
         spec=spec,
         progress=not (args.no_progress or args.quiet or args.json),
         command=command_record(args),
+        layout=args.layout,
+        reference_config=args.reference_config,
+        tum=args.tum,
     )
     if args.json:
-        print(json.dumps({"out": str(out), "metrics": result.metrics}, indent=2))
+        summary = {"out": str(out), "invalid": options.invalid, "metrics": result.metrics}
+        if result.reference_tree is not None:
+            summary["reference"] = {
+                "config": result.reference_tree.config_name,
+                "missing_objects": list(result.reference_tree.missing_objects),
+            }
+        print(json.dumps(summary, indent=2))
     else:
+        from roft_sim.metrics import policy_note
+
         print_metrics_table(result.metrics, "sequence")
+        print(policy_note(options.invalid))
         print(f"results in {out}", file=sys.stderr)
+        if result.reference_tree is not None:
+            _print_reference_note(result.reference_tree)
     return 0

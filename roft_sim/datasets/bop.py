@@ -1,7 +1,10 @@
 """The BOP scene layout (bop_toolkit's ``docs/bop_datasets_format.md``) plus our extras.
 
-One scene folder per sequence (``<root>/<sequence_name>/``; name sequences ``000001`` ... under a
-split folder such as ``test/`` for bop_toolkit)::
+One scene folder per sequence, numbered as bop_toolkit expects (``<root>/000001/``, ...; write
+into a split folder such as ``test/`` for bop_toolkit). A sequence whose name is not a number
+gets the next free scene id (or the ``scene_id`` option; ``roft-sim generate`` numbers its
+scenarios in order), and ``<root>/scene_names.json`` maps each scene folder to the sequence name
+(``{"000001": "fast_ycb_003_cracker_box", ...}``); the scene's ``metadata.json`` keeps it too::
 
     scene_camera.json   {im_id: {cam_K, depth_scale, cam_R_w2c, cam_t_w2c [mm]}}
     scene_gt.json       {im_id: [{cam_R_m2c (row-major 3x3), cam_t_m2c [mm], obj_id}]}
@@ -51,6 +54,7 @@ from roft_sim.datasets.fast_ycb_codec import (
     encode_flow_float,
     format_number,
 )
+from roft_sim.datasets.folder_writer import FolderWriter, check_finished_folder
 from roft_sim.datasets.frames import GT_FULL_MASK_SET, DatasetFrame
 from roft_sim.datasets.image_files import (
     decode_png_mask,
@@ -61,7 +65,7 @@ from roft_sim.datasets.image_files import (
     encode_png_u16,
     read_file_bytes,
 )
-from roft_sim.datasets.metadata import dumps_json, read_json
+from roft_sim.datasets.metadata import read_json
 from roft_sim.datasets.model_files import (
     read_mesh_obj,
     read_mesh_ply_mm,
@@ -76,7 +80,7 @@ from roft_sim.datasets.reader_base import (
     read_flow_field,
     subfolder_names,
 )
-from roft_sim.datasets.writer_base import StreamingWriter, WriterSettings
+from roft_sim.datasets.writer_base import WriterSettings
 from roft_sim.errors import ConfigError, DatasetFormatError, located
 from roft_sim.geometry.camera import CameraIntrinsics
 from roft_sim.geometry.se3 import invert_transform, transform_from_rt
@@ -95,7 +99,14 @@ __all__ = [
     "YCBV_OBJ_IDS",
     "DEFAULT_DEPTH_SCALE_MM",
     "bop_obj_id",
+    "SCENE_NAMES_FILE",
+    "bop_scene_folder",
+    "read_scene_names",
+    "model_diameter_m",
 ]
+
+SCENE_NAMES_FILE = "scene_names.json"
+"""The dataset root's map from scene folder (``000001``) to sequence name."""
 
 DEFAULT_DEPTH_SCALE_MM = 0.1
 """Depth unit of our BOP files [mm] (as YCB-V): uint16 covers 0 .. 6.5535 m in 0.1 mm steps."""
@@ -161,8 +172,88 @@ def _bbox(mask: Bool) -> list[int]:
     return [int(cols[0]), int(rows[0]), int(cols[-1] - cols[0]), int(rows[-1] - rows[0])]
 
 
+def read_scene_names(root: str | Path) -> dict[str, str]:
+    """``<root>/scene_names.json`` (scene folder -> sequence name); empty when absent.
+
+    Raises:
+        DatasetFormatError: not a JSON object of strings.
+    """
+    path = Path(root) / SCENE_NAMES_FILE
+    if not path.is_file():
+        return {}
+    data = read_json(path, "scene names")
+    if not isinstance(data, dict) or not all(
+        isinstance(k, str) and isinstance(v, str) for k, v in data.items()
+    ):
+        raise DatasetFormatError(
+            f"{located(path)} must map scene folders to sequence names, e.g. "
+            '{"000001": "fast_ycb_003_cracker_box"}'
+        )
+    return dict(data)
+
+
+def bop_scene_folder(root: str | Path, sequence_name: str, scene_id: int | None = None) -> str:
+    """The scene folder of ``sequence_name`` under ``root``, recorded in ``scene_names.json``.
+
+    A numeric name is its own folder. Otherwise the folder already mapped to the name, else
+    ``scene_id`` (``%06d``), else the next id after every mapped or existing numbered folder.
+    The map is read, updated and rewritten under an exclusive lock (parallel writers).
+
+    Raises:
+        ConfigError: ``scene_id`` is taken by another sequence.
+    """
+    if sequence_name.isdigit():
+        return sequence_name
+    import fcntl
+
+    root = Path(root)
+    root.mkdir(parents=True, exist_ok=True)
+    lock = os.open(root, os.O_RDONLY)  # the root folder itself is the lock: no file left
+    try:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        return _claim_scene_folder(root, sequence_name, scene_id)
+    finally:
+        os.close(lock)  # releases the lock
+
+
+def _claim_scene_folder(root: Path, sequence_name: str, scene_id: int | None) -> str:
+    """:func:`bop_scene_folder` under the lock."""
+    names = read_scene_names(root)
+    for folder, name in names.items():
+        if name == sequence_name:
+            return folder
+    if scene_id is None:
+        taken = [int(f) for f in names] + [
+            int(p.name) for p in root.iterdir() if p.is_dir() and p.name.isdigit()
+        ]
+        scene_id = max(taken, default=0) + 1
+    folder = f"{scene_id:06d}"
+    if folder in names or (root / folder).exists():
+        raise ConfigError(
+            f"BOP scene {folder} under {str(root)!r} is taken (by "
+            f"{names.get(folder, 'a folder')!r}), so sequence {sequence_name!r} cannot use "
+            "it; write into an empty root or choose another scene_id"
+        )
+    names[folder] = sequence_name
+    atomic_write_text(
+        root / SCENE_NAMES_FILE, json.dumps(dict(sorted(names.items())), indent=2) + "\n"
+    )
+    return folder
+
+
+def model_diameter_m(vertices_m: F64) -> float:
+    """Largest distance between model vertices [m], exact, as bop_toolkit's
+    ``misc.calc_pts_diameter`` on the model's vertices (here via the convex hull, whose vertices
+    hold the farthest pair; flat and degenerate sets too).
+
+    Args:
+        vertices_m: (V, 3) mesh vertices (or points) in the object frame [m].
+    """
+    return _diameter_m(vertices_m)
+
+
 def _diameter_m(points_m: F64) -> float:
-    """Largest distance between model points [m] (via the convex hull; flat models too)."""
+    """Largest distance between points [m] (via the convex hull; flat models too)."""
     from scipy.spatial import ConvexHull, QhullError, distance
 
     pts = np.asarray(points_m, dtype=np.float64)
@@ -179,11 +270,12 @@ def _r_t_mm(T: Any) -> tuple[list[float], list[float]]:
     return T[:3, :3].ravel().tolist(), (T[:3, 3] * 1000.0 + 0.0).tolist()
 
 
-class BopWriter(StreamingWriter):
+class BopWriter(FolderWriter):
     """Streams one sequence into the BOP scene folder ``<root>/<sequence_name>/``.
 
-    Options (``settings.options``): ``depth_scale_mm`` (default 0.1) and ``obj_id`` (default: the
-    YCB-V id of the object, else 1).
+    Options (``settings.options``): ``depth_scale_mm`` (default 0.1), ``obj_id`` (default: the
+    YCB-V id of the object, else 1) and ``scene_id`` (the scene folder of a sequence whose name is
+    not a number; default: the next free one, :func:`bop_scene_folder`).
     """
 
     FORMAT = "bop"
@@ -202,19 +294,13 @@ class BopWriter(StreamingWriter):
             raise ConfigError(f"BOP depth_scale_mm must be > 0, got {scale!r}")
         if not isinstance(obj_id, int) or obj_id < 1:
             raise ConfigError(f"BOP obj_id must be an int >= 1, got {obj_id!r}")
+        scene_id = settings.options.get("scene_id")
+        if scene_id is not None and (not isinstance(scene_id, int) or scene_id < 1):
+            raise ConfigError(f"BOP scene_id must be an int >= 1, got {scene_id!r}")
         self.depth_scale_mm = float(scale)
         self.obj_id = obj_id
-        seq = Path(root) / settings.sequence_name
-        super().__init__(
-            sequence_path=seq,
-            parts_dir=seq / ".roft_sim_parts",
-            settings=settings,
-            object_model=object_model,
-            resume=resume,
-        )
-
-    def _metadata_path(self) -> Path:
-        return self.sequence_path / "metadata.json"
+        seq = Path(root) / bop_scene_folder(root, settings.sequence_name, scene_id)
+        super().__init__(seq, settings, object_model=object_model, resume=resume)
 
     def _format_options(self) -> dict[str, Any]:
         return {"depth_scale_mm": self.depth_scale_mm, "obj_id": self.obj_id}
@@ -288,7 +374,10 @@ class BopWriter(StreamingWriter):
         v_mm = model.vertices_m * 1000.0
         lo, hi = v_mm.min(axis=0), v_mm.max(axis=0)
         info = {
-            "diameter": _diameter_m(model.model_points_m) * 1000.0,
+            "diameter": model_diameter_m(
+                model.vertices_m if len(model.vertices_m) else model.model_points_m
+            )
+            * 1000.0,
             "min_x": lo[0],
             "min_y": lo[1],
             "min_z": lo[2],
@@ -307,7 +396,7 @@ class BopWriter(StreamingWriter):
         self, records: Callable[[], Iterator[dict[str, Any]]], metadata: dict[str, Any]
     ) -> None:
         seq, s = self.sequence_path, self.settings
-        scene_id = int(s.sequence_name) if s.sequence_name.isdigit() else 0
+        scene_id = int(seq.name)
         camera_path, gt_path = seq / "scene_camera.json", seq / "scene_gt.json"
         info_path, time_path = seq / "scene_gt_info.json", seq / "extras" / "scene_time.json"
         velocity_path = seq / "extras" / "scene_gt_velocity.json"
@@ -359,11 +448,11 @@ class BopWriter(StreamingWriter):
                 out.write(path, "\n}\n")
             if metadata["ground_truth"]["velocities"]:
                 out.write(velocity_path, "\n}\n")
-        for name in metadata["sets"]["mask"]:
-            (seq / "extras" / "masks" / name).mkdir(parents=True, exist_ok=True)
-        for name in metadata["sets"]["flow"]:
-            (seq / "extras" / "flow" / name).mkdir(parents=True, exist_ok=True)
-        atomic_write_text(self._metadata_path(), dumps_json(metadata))
+        self._finish_folder(
+            metadata,
+            mask_set_dir=lambda name: seq / "extras" / "masks" / name,
+            flow_set_dir=lambda name: seq / "extras" / "flow" / name,
+        )
 
 
 class BopSequence(SequenceReaderBase):
@@ -390,11 +479,7 @@ class BopSequence(SequenceReaderBase):
         self, path: str | Path, *, object_name: str | None = None, fps: int | None = None
     ) -> None:
         self.path = Path(path)
-        if (self.path / ".roft_sim_parts").is_dir():
-            raise DatasetFormatError(
-                f"{located(self.path)} is an unfinished sequence (its writer did not finalize); "
-                "resume the generator or call finalize() on its writer"
-            )
+        check_finished_folder(self.path)
         meta_path = self.path / "metadata.json"
         self._metadata: dict[str, Any] = (
             read_json(meta_path, "metadata") if meta_path.is_file() else {}

@@ -42,6 +42,7 @@ from roft_sim.datasets.fast_ycb_codec import (
     pose_row_from_transform,
     transforms_from_pose_rows,
 )
+from roft_sim.datasets.folder_writer import PARTS_DIR_NAME, FolderWriter, check_finished_folder
 from roft_sim.datasets.frames import GT_FULL_MASK_SET, DatasetFrame
 from roft_sim.datasets.image_files import (
     decode_png_mask,
@@ -50,7 +51,7 @@ from roft_sim.datasets.image_files import (
     encode_png_rgb,
     read_file_bytes,
 )
-from roft_sim.datasets.metadata import dumps_json, read_json
+from roft_sim.datasets.metadata import read_json
 from roft_sim.datasets.model_files import (
     read_mesh_obj,
     read_points_xyz,
@@ -63,7 +64,7 @@ from roft_sim.datasets.reader_base import (
     read_flow_field,
     subfolder_names,
 )
-from roft_sim.datasets.writer_base import StreamingWriter, WriterSettings
+from roft_sim.datasets.writer_base import WriterSettings
 from roft_sim.errors import DatasetFormatError, located
 from roft_sim.records import FlowField, ObjectModel, PoseTrack
 
@@ -74,7 +75,6 @@ Bool = NDArray[np.bool_]
 
 __all__ = ["FastYcbWriter", "FastYcbSequence", "is_fast_ycb_sequence", "PARTS_DIR_NAME"]
 
-PARTS_DIR_NAME = ".roft_sim_parts"
 """Folder inside an unfinished sequence holding the writer settings and per-frame records."""
 
 _NOT_POSE_SETS = {"gt", "rgb", "depth", "masks", "optical_flow", "optical_flow_valid", "models"}
@@ -87,7 +87,7 @@ def is_fast_ycb_sequence(path: Path) -> bool:
     return (path / "cam_K.json").is_file() and (path / "data.txt").is_file()
 
 
-class FastYcbWriter(StreamingWriter):
+class FastYcbWriter(FolderWriter):
     """Streams one sequence into ``<root>/<sequence_name>/`` in the Fast-YCB layout.
 
     Use :func:`roft_sim.datasets.open_writer`; see :mod:`roft_sim.datasets.writer_base` for
@@ -104,17 +104,9 @@ class FastYcbWriter(StreamingWriter):
         object_model: ObjectModel | None,
         resume: bool,
     ) -> None:
-        seq = Path(root) / settings.sequence_name
         super().__init__(
-            sequence_path=seq,
-            parts_dir=seq / PARTS_DIR_NAME,
-            settings=settings,
-            object_model=object_model,
-            resume=resume,
+            Path(root) / settings.sequence_name, settings, object_model=object_model, resume=resume
         )
-
-    def _metadata_path(self) -> Path:
-        return self.sequence_path / "metadata.json"
 
     def _mask_path(self, mask_set: str, k: int) -> str:
         return f"{self.sequence_path}/masks/{mask_set}/{self.settings.object_name}_{k}.png"
@@ -193,12 +185,11 @@ class FastYcbWriter(StreamingWriter):
                         _ZERO_POSE_ROW if T is None else format_row(pose_row_from_transform(T))
                     )
                     out.write(seq / name / "poses.txt", row_text + "\n")
-        # Folders of sets that happen to hold no file (e.g. a detector that always missed).
-        for name in metadata["sets"]["mask"]:
-            (seq / "masks" / name).mkdir(parents=True, exist_ok=True)
-        for name in metadata["sets"]["flow"]:
-            (seq / "optical_flow" / name).mkdir(parents=True, exist_ok=True)
-        atomic_write_text(self._metadata_path(), dumps_json(metadata))
+        self._finish_folder(
+            metadata,
+            mask_set_dir=lambda name: seq / "masks" / name,
+            flow_set_dir=lambda name: seq / "optical_flow" / name,
+        )
 
 
 class FastYcbSequence(SequenceReaderBase):
@@ -224,11 +215,7 @@ class FastYcbSequence(SequenceReaderBase):
         self.path = Path(path)
         if not self.path.is_dir():
             raise DatasetFormatError(f"Fast-YCB sequence folder {located(self.path)} is missing")
-        if (self.path / PARTS_DIR_NAME).is_dir():
-            raise DatasetFormatError(
-                f"{located(self.path)} is an unfinished sequence (its writer did not finalize); "
-                "resume the generator or call finalize() on its writer"
-            )
+        check_finished_folder(self.path)
         cam_k = self.path / "cam_K.json"
         self._intrinsics = decode_cam_k_json(
             read_file_bytes(cam_k, "intrinsics").decode("utf-8", errors="replace"), cam_k

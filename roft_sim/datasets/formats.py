@@ -13,6 +13,7 @@ from roft_sim.datasets.base import GT_MASK_SET, Sequence
 from roft_sim.datasets.bop import BopSequence, BopWriter, is_bop_scene
 from roft_sim.datasets.fast_ycb import PARTS_DIR_NAME, FastYcbSequence, FastYcbWriter
 from roft_sim.datasets.fast_ycb import is_fast_ycb_sequence as _is_fast_ycb
+from roft_sim.datasets.fast_ycb_codec import CV_16SC2
 from roft_sim.datasets.frames import GT_FULL_MASK_SET, DatasetFrame, FlowEncoding, SequenceWriter
 from roft_sim.datasets.hdf5 import Hdf5Sequence, Hdf5Writer
 from roft_sim.datasets.image_files import PNG_COMPRESSION
@@ -23,6 +24,7 @@ from roft_sim.geometry.camera import CameraIntrinsics
 from roft_sim.records import FlowField, ObjectModel
 
 __all__ = [
+    "stored_flow_encodings",
     "DatasetFormat",
     "DATASET_FORMATS",
     "open_writer",
@@ -53,6 +55,7 @@ def open_writer(
     resume: bool = False,
     depth_scale_mm: float | None = None,
     bop_obj_id: int | None = None,
+    bop_scene_id: int | None = None,
     compression: Literal["gzip", "lzf"] | None = None,
     compression_level: int | None = None,
     png_compression: int = PNG_COMPRESSION,
@@ -60,8 +63,9 @@ def open_writer(
     """Opens a streaming writer for one sequence.
 
     Args:
-        fmt: ``fast-ycb`` (folder ``root/sequence_name/``), ``bop`` (scene folder
-            ``root/sequence_name/``) or ``hdf5`` (file ``root/sequence_name.h5``).
+        fmt: ``fast-ycb`` (folder ``root/sequence_name/``), ``bop`` (numbered scene folder
+            ``root/000001/``, see :func:`~roft_sim.datasets.bop.bop_scene_folder`) or ``hdf5``
+            (file ``root/sequence_name.h5``).
         root: dataset root folder (created if needed).
         sequence_name: folder/file name of the sequence, e.g. ``003_cracker_box``.
         object_name: the object's registry name (mask file names, model folder).
@@ -76,6 +80,8 @@ def open_writer(
             non-empty output; on a finished sequence the writer reports every frame complete.
         depth_scale_mm: BOP only: depth unit of the uint16 PNGs [mm] (default 0.1).
         bop_obj_id: BOP only: ``obj_id`` (default: the YCB-V id of the object, else 1).
+        bop_scene_id: BOP only: the scene folder number of a sequence whose name is not a
+            number (default: the next free one; ``<root>/scene_names.json`` maps it to the name).
         compression: HDF5 only: ``gzip`` (default) or ``lzf``.
         compression_level: HDF5 only: gzip level 1-9 (default 4).
         png_compression: zlib level 0-9 of the PNG files (fast-ycb, bop; default
@@ -92,7 +98,7 @@ def open_writer(
         raise ConfigError(f"unknown dataset format {fmt!r}; expected one of {DATASET_FORMATS}")
     options: dict[str, Any] = {}
     per_format: dict[str, dict[str, Any]] = {
-        "bop": {"depth_scale_mm": depth_scale_mm, "obj_id": bop_obj_id},
+        "bop": {"depth_scale_mm": depth_scale_mm, "obj_id": bop_obj_id, "scene_id": bop_scene_id},
         "hdf5": {"compression": compression, "compression_level": compression_level},
     }
     for name, opts in per_format.items():
@@ -255,6 +261,38 @@ def dataset_frames(sequence: Sequence) -> Iterator[DatasetFrame]:
         )
 
 
+def stored_flow_encodings(sequence: Sequence) -> dict[str, FlowEncoding]:
+    """The on-disk encoding of each flow set of ``sequence`` (``float32`` or ``s10.5``).
+
+    From the sequence's metadata (``sets.flow.<name>.encoding``, which our writers record), else,
+    for a Fast-YCB folder without it (the real Fast-YCB), from the ``cv_type`` of the set's first
+    flow file (11 = CV_16SC2 = NVOF's S10.5); ``float32`` otherwise (in-memory sequences).
+    """
+    sets = sequence.metadata().get("sets")
+    recorded = sets.get("flow") if isinstance(sets, Mapping) else None
+    out: dict[str, FlowEncoding] = {}
+    for name in sequence.flow_sets():
+        info = recorded.get(name) if isinstance(recorded, Mapping) else None
+        encoding = info.get("encoding") if isinstance(info, Mapping) else None
+        if encoding is None and isinstance(sequence, FastYcbSequence):
+            encoding = _probe_fast_ycb_flow_encoding(sequence.path / "optical_flow" / name)
+        out[name] = "s10.5" if encoding == "s10.5" else "float32"
+    return out
+
+
+def _probe_fast_ycb_flow_encoding(folder: Path) -> str | None:
+    """``s10.5`` or ``float32`` from the cv_type of the first ``<k>.float`` in ``folder``."""
+    files = sorted(folder.glob("*.float"), key=lambda p: (len(p.stem), p.stem))
+    if not files:
+        return None
+    with open(files[0], "rb") as f:
+        header = f.read(4)
+    if len(header) < 4:
+        return None
+    cv_type = int.from_bytes(header, "little", signed=True)
+    return "s10.5" if cv_type == CV_16SC2 else "float32"
+
+
 def write_sequence(
     sequence: Sequence,
     fmt: DatasetFormat,
@@ -266,7 +304,9 @@ def write_sequence(
 ) -> Path:
     """Writes any ``Sequence`` (in memory, or read from another format) in format ``fmt``.
 
-    Frames stream one by one. ``options`` are passed to :func:`open_writer`.
+    Frames stream one by one. ``options`` are passed to :func:`open_writer`. Flow sets keep
+    their stored encoding (:func:`stored_flow_encodings`: NVOF's int16 S10.5 stays int16) unless
+    ``flow_encodings`` says otherwise.
 
     Returns:
         The written sequence's path.
@@ -281,7 +321,9 @@ def write_sequence(
         n_frames=len(sequence),
         metadata={k: v for k, v in sequence.metadata().items() if k not in RESERVED_METADATA_KEYS},
         object_model=sequence.object_model(),
-        flow_encodings=flow_encodings,
+        flow_encodings=(
+            flow_encodings if flow_encodings is not None else stored_flow_encodings(sequence)
+        ),
         **options,
     )
     for frame in dataset_frames(sequence):

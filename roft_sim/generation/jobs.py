@@ -35,6 +35,7 @@ __all__ = [
     "SequenceJob",
     "parse_resolution",
     "sequence_name_for",
+    "sequence_names_for",
     "generation_metadata",
     "prepare_jobs",
 ]
@@ -114,6 +115,18 @@ def object_name_of(scenario: Scenario) -> str:
     return obj.name if obj.name is not None else Path(obj.mesh).stem  # type: ignore[arg-type]
 
 
+def sequence_names_for(
+    scenarios: Sequence[Scenario], naming: Literal["scenario", "object", "auto"]
+) -> list[str]:
+    """The sequence names of ``scenarios``; ``auto``: after the object when every scenario has
+    its own (one object per sequence, as Fast-YCB: the fast-ycb loader's mask names
+    ``<object>_<k>.png`` then match the folder), else after the scenario."""
+    if naming == "auto":
+        objects = [object_name_of(s) for s in scenarios]
+        naming = "object" if len(set(objects)) == len(objects) else "scenario"
+    return [sequence_name_for(s, naming) for s in scenarios]
+
+
 def sequence_name_for(scenario: Scenario, naming: Literal["scenario", "object"]) -> str:
     """A sequence's folder/file name: the scenario's ``name`` or its object's name."""
     return scenario.name if naming == "scenario" else object_name_of(scenario)
@@ -163,6 +176,7 @@ def generation_metadata(
     time, host or path of the output, so the same inputs give byte-identical files."""
     return {
         "seed": scenario.seed,
+        "scenario_name": scenario.name,
         "scenario": jsonable(scenario),
         "generator": {
             "tool": "roft-sim generate",
@@ -298,6 +312,8 @@ def prepare_jobs(
             "flow_encodings": scenario.networks.flow_encodings,
             "png_compression": png_compression,
         }
+        if fmt == "bop":  # scene folders 000001... in scenario order (a name map beside them)
+            writer_args["bop_scene_id"] = index + 1
         if shard_run:
             writer = _open_shared_writer(fmt, out_dir, writer_args)
         else:

@@ -40,7 +40,7 @@ from roft_sim.generation.jobs import (
     ScenarioOverrides,
     SequenceJob,
     prepare_jobs,
-    sequence_name_for,
+    sequence_names_for,
 )
 from roft_sim.generation.work_units import WorkUnit, plan_shard_units, plan_work_units
 from roft_sim.scenario import Scenario
@@ -376,7 +376,7 @@ def generate_dataset(
     options: GenerationOptions | None = None,
     *,
     overrides: ScenarioOverrides | None = None,
-    sequence_naming: Literal["scenario", "object"] = "scenario",
+    sequence_naming: Literal["scenario", "object", "auto"] = "scenario",
     preset: str | None = None,
     prepare_output: Callable[[Path], Any] | None = None,
     on_frames: Callable[[int], None] | None = None,
@@ -392,7 +392,10 @@ def generate_dataset(
             unless ``options.resume`` (or ``options.shard``).
         options: format, workers, resume, shard, ... (default: :class:`GenerationOptions()`).
         overrides: frames / resolution / seed applied to every scenario (default: none).
-        sequence_naming: name sequences after the scenario or after its object.
+        sequence_naming: name sequences after the scenario (default) or after its object;
+            ``auto`` (``roft-sim generate``): after the object when each scenario has its own,
+            else the scenario (the scenario's name is kept in ``metadata.json``,
+            ``scenario_name``).
         preset: the preset the scenarios come from (recorded in the metadata).
         prepare_output: called with ``out_dir`` once every scenario is checked (objects
             loaded, trajectories long enough) and before anything is written, e.g. to empty the
@@ -421,7 +424,7 @@ def generate_dataset(
         resolved,
         out,
         fmt=options.format,
-        sequence_names=[sequence_name_for(s, sequence_naming) for s in resolved],
+        sequence_names=sequence_names_for(resolved, sequence_naming),
         overrides=overrides,
         preset=preset,
         resume=options.resume or options.shard is not None,

@@ -14,7 +14,7 @@ from typing import Any, Literal
 
 from roft_sim.errors import ConfigError
 from roft_sim.faults import FaultConfig, load_faults
-from roft_sim.metrics import InvalidPolicy
+from roft_sim.metrics import INVALID_POLICIES, InvalidPolicy
 
 __all__ = [
     "RunOptions",
@@ -68,8 +68,8 @@ class RunOptions:
     a flow source that needs rgb, e.g. DIS, reads them itself)."""
     invalid: InvalidPolicy = "failure"
     """How frames without a tracker pose (``Estimate.valid`` False) are scored
-    (docs/metrics.md): ``failure``, ``exclude`` (the reference's treatment of detector misses)
-    or ``as_given``."""
+    (docs/metrics.md): ``failure``, ``exclude``, ``as_given`` or ``hold`` (the reference's
+    treatment of its DOPE row; ``roft-sim run`` picks it under the ``paper`` faults)."""
 
     def __post_init__(self) -> None:
         if not self.tracker:
@@ -78,10 +78,10 @@ class RunOptions:
             raise ConfigError(
                 f"unknown init policy {self.init!r}; expected one of {', '.join(INIT_POLICIES)}"
             )
-        if self.invalid not in ("failure", "exclude", "as_given"):
+        if self.invalid not in INVALID_POLICIES:
             raise ConfigError(
-                f"unknown invalid-estimate policy {self.invalid!r}; expected failure, exclude or "
-                "as_given"
+                f"unknown invalid-estimate policy {self.invalid!r}; expected one of "
+                f"{', '.join(INVALID_POLICIES)}"
             )
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise ConfigError(f"seed must be an integer >= 0, got {self.seed!r}")

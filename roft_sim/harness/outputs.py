@@ -8,8 +8,12 @@ One folder per sequence (docs/running.md, "Outputs"):
                            [rad/s], position [m], unit axis and angle [rad] in [0, pi], camera
                            frame. A frame without a valid, finite estimate is a row of 13 zeros
                            (the reference pads missing results with zeros).
-``velocity_estimate.txt``  6 columns ``v_o(3) w(3)``: the tracker's spatial twist when it reports
-                           one (ROFT's velocity KF), else ``v_o = v_obj - w x t`` of its estimate.
+``velocity_estimate.txt``  6 columns ``v_o(3) w(3)``, written so that the reference's conversion
+                           ``v = v_o + w x t_gt`` gives back the tracker's estimate: its spatial
+                           twist when it reports one (ROFT's velocity KF, which the reference
+                           converts the same way), else ``v_o = v_obj - w x t_gt`` of its
+                           ``v_obj`` and ``w`` (``t_gt``: ground-truth position; the estimate's
+                           own position when the sequence has no ground truth).
 ``execution_times.txt``    2 columns ``step_ms load_ms``: ``tracker.step`` time and the time the
                            harness took to build the observation (the reference's layout).
 ``estimates.npz``          every :class:`~roft_sim.records.Estimate` field, lossless (float64):
@@ -19,6 +23,10 @@ One folder per sequence (docs/running.md, "Outputs"):
 ``frame_errors.npz``       the per-frame errors behind the metrics (ADD, position, rotation,
                            velocity errors) and the metric scalars; pooled by sweeps and reports.
 ``metrics.json``           this sequence's metrics entry.
+``gt.tum``, ``estimate.tum``  with ``--tum``: TUM trajectories ``t tx ty tz qx qy qz qw`` (time
+                           [s] = k / fps, ``T_cam_obj`` position [m], unit quaternion scalar
+                           LAST) of the ground truth and of the frames with a valid estimate,
+                           for ``evo_ape tum gt.tum estimate.tum`` / ``evo_rpe``.
 =========================  ====================================================================
 
 Every file is written atomically (temporary file, then rename).
@@ -45,9 +53,10 @@ from roft_sim.datasets.fast_ycb_codec import (
 from roft_sim.errors import DatasetFormatError, located
 from roft_sim.faults.events import DeliveryEvent
 from roft_sim.geometry.se3 import v_o_from_v_obj
+from roft_sim.geometry.so3 import canonical_quat, quat_from_matrix, quat_xyzw_from_wxyz
 from roft_sim.harness.evaluation import SequenceEvaluation
 from roft_sim.harness.runner import SequenceRun
-from roft_sim.metrics import SequenceMetrics, step_time_stats
+from roft_sim.metrics import SequenceMetrics, held_estimate_index, step_time_stats
 from roft_sim.records import Estimate
 
 F64 = NDArray[np.float64]
@@ -60,6 +69,10 @@ __all__ = [
     "DELIVERIES_FILE",
     "FRAME_ERRORS_FILE",
     "SEQUENCE_METRICS_FILE",
+    "GT_TUM_FILE",
+    "ESTIMATE_TUM_FILE",
+    "tum_text",
+    "write_tum_files",
     "write_json",
     "read_json",
     "pose_estimate_rows",
@@ -82,6 +95,8 @@ ESTIMATES_FILE = "estimates.npz"
 DELIVERIES_FILE = "deliveries.npz"
 FRAME_ERRORS_FILE = "frame_errors.npz"
 SEQUENCE_METRICS_FILE = "metrics.json"
+GT_TUM_FILE = "gt.tum"
+ESTIMATE_TUM_FILE = "estimate.tum"
 
 
 def write_json(path: Path, data: Any) -> None:
@@ -113,11 +128,29 @@ def _usable(e: Estimate) -> bool:
     return e.valid and bool(np.isfinite(e.T_cam_obj).all())
 
 
-def pose_estimate_rows(estimates: SequenceABC[Estimate]) -> F64:
+def _held_or_own(estimates: SequenceABC[Estimate]) -> NDArray[np.int64]:
+    """(N,) the estimate each frame shows under ``hold``: the last usable one at or before it,
+    the first usable one before that; the frame's own where none is usable."""
+    held = held_estimate_index([_usable(e) for e in estimates])
+    usable = held[held >= 0]
+    if usable.size == 0:
+        return np.arange(len(estimates))
+    return np.where(held >= 0, held, usable[0])
+
+
+def pose_estimate_rows(estimates: SequenceABC[Estimate], *, hold: bool = False) -> F64:
     """(N, 13) rows of ``pose_estimate.txt``: ``v_obj w p axis angle``; zeros for frames without
-    a valid, finite estimate."""
+    a valid, finite estimate.
+
+    Args:
+        estimates: one estimate per frame.
+        hold: fill frames without one instead (see :func:`velocity_estimate_rows`), as the
+            reference layout needs (its evaluation divides by the norm of a zero axis).
+    """
+    source = _held_or_own(estimates) if hold else np.arange(len(estimates))
     rows = np.zeros((len(estimates), 13))
-    for i, e in enumerate(estimates):
+    for i in range(len(estimates)):
+        e = estimates[int(source[i])]
         vel = np.concatenate([e.v_obj_mps, e.w_radps])
         if _usable(e) and np.isfinite(vel).all():
             rows[i] = [*vel, *pose_row_from_transform(e.T_cam_obj)]
@@ -126,18 +159,35 @@ def pose_estimate_rows(estimates: SequenceABC[Estimate]) -> F64:
     return rows
 
 
-def velocity_estimate_rows(estimates: SequenceABC[Estimate]) -> F64:
+def velocity_estimate_rows(
+    estimates: SequenceABC[Estimate], t_gt_m: F64 | None = None, *, hold: bool = False
+) -> F64:
     """(N, 6) rows of ``velocity_estimate.txt``: ``v_o w`` [m/s, rad/s], camera frame.
 
-    The spatial twist when the estimate carries one, else ``v_o`` converted from the estimate's
-    ``v_obj``, ``w`` and position; zeros where neither is finite.
+    The spatial twist when the estimate carries one, else ``v_o = v_obj - w x t_gt`` of the
+    estimate's ``v_obj`` and ``w``, so that the reference's ``v = v_o + w x t_gt`` yields
+    ``v_obj`` (docs/conventions.md, "Velocity"); zeros where neither is finite.
+
+    Args:
+        estimates: one estimate per frame.
+        t_gt_m: (N, 3) ground-truth object position [m], camera frame; None = each estimate's
+            own position (sequences without ground truth).
+        hold: rows come from :func:`~roft_sim.metrics.held_estimate_index` (a frame without a
+            valid estimate takes the last valid one, frames before the first the first one)
+            while ``t_gt`` stays the frame's own: what the reference scores under ``hold``.
     """
-    rows = np.zeros((len(estimates), 6))
-    for i, e in enumerate(estimates):
+    n = len(estimates)
+    if t_gt_m is not None and np.shape(t_gt_m) != (n, 3):
+        raise ValueError(f"t_gt_m must have shape ({n}, 3), got {np.shape(t_gt_m)}")
+    source = _held_or_own(estimates) if hold else np.arange(n)
+    rows = np.zeros((n, 6))
+    for i in range(n):
+        e = estimates[int(source[i])]
         if e.spatial_twist is not None:
             row = np.asarray(e.spatial_twist, dtype=np.float64)
         elif _usable(e):
-            v_o = v_o_from_v_obj(e.v_obj_mps, e.w_radps, e.T_cam_obj[:3, 3])
+            t = e.T_cam_obj[:3, 3] if t_gt_m is None else np.asarray(t_gt_m[i], dtype=np.float64)
+            v_o = v_o_from_v_obj(e.v_obj_mps, e.w_radps, t)
             row = np.concatenate([v_o, e.w_radps])
         else:
             continue
@@ -370,15 +420,51 @@ def load_frame_errors(path: str | Path) -> SequenceMetrics:
     )
 
 
+# ------------------------------------------------------------------------------------ TUM
+def tum_text(t_s: F64, T_cam_obj: F64) -> str:
+    """TUM trajectory text, one ``t tx ty tz qx qy qz qw`` line per pose (quaternion scalar
+    LAST, ``w >= 0``), as evo's ``file_interface.read_tum_trajectory_file`` reads it.
+
+    Args:
+        t_s: (N,) time stamps [s].
+        T_cam_obj: (N, 4, 4) poses [m].
+    """
+    t_s = np.asarray(t_s, dtype=np.float64)
+    T = np.asarray(T_cam_obj, dtype=np.float64)
+    if T.shape != (t_s.shape[0], 4, 4):
+        raise ValueError(f"need (N,) times and (N, 4, 4) poses, got {t_s.shape} and {T.shape}")
+    q = canonical_quat(quat_from_matrix(T[:, :3, :3])) if len(T) else np.zeros((0, 4))
+    rows = np.hstack([t_s[:, None], T[:, :3, 3], quat_xyzw_from_wxyz(q).reshape(-1, 4)])
+    return "# timestamp tx ty tz qx qy qz qw\n" + "".join(format_row(r) + "\n" for r in rows)
+
+
+def write_tum_files(folder: str | Path, run: SequenceRun) -> tuple[Path, ...]:
+    """Writes ``estimate.tum`` (frames with a valid, finite estimate) and, when the sequence has
+    ground truth, ``gt.tum`` into ``folder``; returns the paths written."""
+    folder = Path(folder)
+    t_s = np.arange(len(run)) / float(run.fps)
+    usable = np.array([_usable(e) for e in run.estimates], dtype=bool)
+    T_est = np.array([e.T_cam_obj for e in run.estimates], dtype=np.float64).reshape(-1, 4, 4)
+    paths = [folder / ESTIMATE_TUM_FILE]
+    atomic_write_text(paths[0], tum_text(t_s[usable], T_est[usable]))
+    if run.ground_truth is not None:
+        paths.append(folder / GT_TUM_FILE)
+        atomic_write_text(paths[1], tum_text(t_s, run.ground_truth.T_cam_obj))
+    return tuple(paths)
+
+
 # ------------------------------------------------------------------------------- all at once
 def write_sequence_outputs(
-    folder: str | Path, run: SequenceRun, evaluation: SequenceEvaluation
+    folder: str | Path, run: SequenceRun, evaluation: SequenceEvaluation, *, tum: bool = False
 ) -> Path:
-    """Writes every per-sequence file of ``run`` into ``folder`` (created); returns it."""
+    """Writes every per-sequence file of ``run`` into ``folder`` (created); returns it.
+
+    ``tum``: also the TUM trajectories (:func:`write_tum_files`)."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     _write_rows(folder / POSE_ESTIMATE_FILE, pose_estimate_rows(run.estimates))
-    _write_rows(folder / VELOCITY_ESTIMATE_FILE, velocity_estimate_rows(run.estimates))
+    t_gt = None if run.ground_truth is None else run.ground_truth.T_cam_obj[:, :3, 3]
+    _write_rows(folder / VELOCITY_ESTIMATE_FILE, velocity_estimate_rows(run.estimates, t_gt))
     _write_rows(
         folder / EXECUTION_TIMES_FILE,
         np.stack([1e3 * run.step_times_s, 1e3 * run.load_times_s], axis=1),
@@ -393,4 +479,6 @@ def write_sequence_outputs(
     if evaluation.metrics is not None:
         save_frame_errors(folder / FRAME_ERRORS_FILE, evaluation.metrics)
     write_json(folder / SEQUENCE_METRICS_FILE, evaluation.entry())
+    if tum:
+        write_tum_files(folder, run)
     return folder

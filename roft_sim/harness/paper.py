@@ -8,9 +8,9 @@ paper's qualitative findings (:func:`check_findings`).
 
 How the reference evaluation is mirrored (docs/paper.md): frames are aligned by index; per object
 the sequences of that object are pooled, ``ALL`` pools the frames of every object; frames
-without a tracker pose are left out (``invalid = "exclude"``: the reference drops the frames
-before the first valid detection); velocity is scored from ROFT's velocity filter (its spatial
-twist, converted with the ground-truth position).
+before a tracker's first pose are left out and later frames without one hold the last
+(``invalid = "hold"``: the reference's treatment of its DOPE row); velocity is scored from
+ROFT's velocity filter (its spatial twist, converted with the ground-truth position).
 """
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ from roft_sim.harness.inputs import check_inputs
 from roft_sim.harness.options import RunOptions
 from roft_sim.harness.outputs import write_json
 from roft_sim.harness.run_dataset import find_sequences
-from roft_sim.metrics import SequenceMetrics, concatenate_metrics
+from roft_sim.metrics import SequenceMetrics, concatenate_metrics, policy_note
 from roft_sim.report.paper_reference import ALL, PaperTables, paper_tables
 from roft_sim.report.plotting import bar_figure, save_figure
 from roft_sim.report.tables import Column, csv_table, latex_table, markdown_table
@@ -56,6 +56,8 @@ __all__ = [
     "Finding",
 ]
 
+PAPER_INVALID = "hold"
+"""The invalid-estimate policy of every row: the reference's (docs/metrics.md)."""
 PAPER_FAULTS = "paper"
 """The fault preset of every row: 5 fps networks, results 6 frames late, frame 0 undelayed."""
 
@@ -203,7 +205,7 @@ def plan_paper(
                 masks=row.masks,
                 seed=seed,
                 include_rgb=False,
-                invalid="exclude",
+                invalid=PAPER_INVALID,
             )
             check_inputs(seq, options)
             cells.append(
@@ -562,6 +564,7 @@ def write_paper_tables(
     findings = check_findings(results)
     md = [*header]
     tex = []
+    md += [f"Every simulated number: {policy_note(PAPER_INVALID)}.", ""]
     md += ["## Table I: pose tracking (simulation vs paper)", ""]
     table1 = _table1(results, rows, paper, entries)
     table2 = _table2(results, paper, entries)

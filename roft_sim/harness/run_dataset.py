@@ -12,7 +12,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 from roft_sim.config_files import jsonable
 from roft_sim.datasets import detect_format, list_sequences, open_sequence
@@ -23,12 +23,21 @@ from roft_sim.harness.evaluation import SequenceEvaluation, evaluate_run
 from roft_sim.harness.inputs import DepthRendererFactory, resolve_object_model
 from roft_sim.harness.options import RunOptions
 from roft_sim.harness.outputs import write_json, write_sequence_outputs
+from roft_sim.harness.reference_layout import (
+    REFERENCE_TOP_FOLDERS,
+    ReferenceTree,
+    check_reference_objects,
+    reference_config_name,
+    write_reference_tree,
+)
 from roft_sim.harness.runner import SequenceRun, run_sequence
 from roft_sim.metrics import POOLED_ALL, POOLED_MEAN, SequenceMetrics, pool_metrics
 from roft_sim.trackers import TrackerSpec, get_tracker_spec, load_tracker_config
 
 __all__ = [
     "RunResult",
+    "OutputLayout",
+    "OUTPUT_LAYOUTS",
     "SequenceSource",
     "check_sequence_names",
     "find_sequences",
@@ -41,6 +50,10 @@ __all__ = [
 
 RUN_FILE = "run.json"
 METRICS_FILE = "metrics.json"
+OutputLayout = Literal["ours", "reference"]
+OUTPUT_LAYOUTS: tuple[str, ...] = ("ours", "reference")
+"""``ours``: one folder per sequence (docs/running.md); ``reference``: that, plus the tree the
+reference ROFT evaluation reads (:mod:`roft_sim.harness.reference_layout`)."""
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -67,6 +80,8 @@ class RunResult:
     """The per-sequence runs (estimates, step times, ledgers)."""
     wall_s: float
     """Wall time [s]."""
+    reference_tree: ReferenceTree | None = None
+    """The reference evaluation's tree, with ``layout="reference"``."""
 
     @property
     def sequence_names(self) -> list[str]:
@@ -145,6 +160,9 @@ def run_sequences(
     progress: bool = False,
     on_sequence_done: Callable[[SequenceRun, SequenceEvaluation], None] | None = None,
     command: Sequence[str] | None = None,
+    layout: OutputLayout = "ours",
+    reference_config: str | None = None,
+    tum: bool = False,
 ) -> RunResult:
     """Runs ``options.tracker`` over every sequence and writes the results into ``out_dir``.
 
@@ -157,6 +175,11 @@ def run_sequences(
         progress: show a tqdm progress bar over frames on stderr.
         on_sequence_done: called after each sequence is written.
         command: the command line, recorded in ``run.json``.
+        layout: ``"reference"`` also writes the reference evaluation's tree into ``out_dir``
+            (one sequence per object, with ground truth; see
+            :mod:`~roft_sim.harness.reference_layout`).
+        reference_config: its ``<config>`` folder; None = :func:`reference_config_name`.
+        tum: also write ``gt.tum`` and ``estimate.tum`` per sequence (evo's TUM format).
 
     Returns:
         The :class:`RunResult`.
@@ -165,6 +188,16 @@ def run_sequences(
     if not sources:
         raise ConfigError("no sequence to run")
     check_sequence_names(sources)
+    if layout not in OUTPUT_LAYOUTS:
+        raise ConfigError(f"unknown output layout {layout!r}; expected one of {OUTPUT_LAYOUTS}")
+    if layout == "reference":
+        check_reference_objects([s.sequence.object_name for s in sources])
+        clash = sorted({s.sequence.name for s in sources} & set(REFERENCE_TOP_FOLDERS))
+        if clash:
+            raise ConfigError(
+                f"sequence names {clash} clash with the reference tree's folders "
+                f"{REFERENCE_TOP_FOLDERS}; rename those sequences or drop --layout reference"
+            )
     spec = spec if spec is not None else get_tracker_spec(options.tracker)
     if options.tracker_config is None:
         options = options.replace(tracker_config=load_tracker_config(spec, None))
@@ -193,7 +226,7 @@ def run_sequences(
                 progress=bar.update,
             )
             evaluation = evaluate_run(run, invalid=options.invalid)
-            write_sequence_outputs(out / seq.name, run, evaluation)
+            write_sequence_outputs(out / seq.name, run, evaluation, tum=tum)
             runs.append(run)
             evaluations[seq.name] = evaluation
             described.append(
@@ -223,6 +256,16 @@ def run_sequences(
     for name, evaluation in evaluations.items():
         metrics[name] = evaluation.entry()
     write_json(out / METRICS_FILE, metrics)
+    tree = None
+    if layout == "reference":
+        config_name = reference_config or reference_config_name(
+            runs[0].inputs, spec.name, options.tracker_config
+        )
+        tree = write_reference_tree(
+            out,
+            [(r, s.sequence) for r, s in zip(runs, sources, strict=True)],
+            config_name=config_name,
+        )
     wall_s = time.perf_counter() - t0
     write_json(
         out / RUN_FILE,
@@ -232,8 +275,17 @@ def run_sequences(
             "tracker": tracker_description(spec),
             "options": jsonable(options),
             "sequences": described,
+            "layout": layout,
+            "reference_config": None if tree is None else tree.config_name,
             "versions": package_versions("mujoco", "scipy"),
             "wall_s": round(wall_s, 3),
         },
     )
-    return RunResult(out_dir=out, metrics=metrics, pooled=pooled, runs=tuple(runs), wall_s=wall_s)
+    return RunResult(
+        out_dir=out,
+        metrics=metrics,
+        pooled=pooled,
+        runs=tuple(runs),
+        wall_s=wall_s,
+        reference_tree=tree,
+    )

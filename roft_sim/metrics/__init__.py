@@ -25,6 +25,7 @@ from roft_sim.metrics.pose_errors import (
     translation_errors_m,
 )
 from roft_sim.metrics.sequence import (
+    INVALID_POLICIES,
     POOLED_ALL,
     POOLED_MEAN,
     InvalidPolicy,
@@ -32,6 +33,8 @@ from roft_sim.metrics.sequence import (
     concatenate_metrics,
     evaluate_estimates,
     evaluate_sequence,
+    held_estimate_index,
+    policy_note,
     pool_metrics,
 )
 from roft_sim.metrics.sync import (
@@ -47,6 +50,7 @@ from roft_sim.metrics.timing import REAL_TIME_BUDGET_S, StepTimeStats, step_time
 
 __all__ = [
     "DEFAULT_MAX_THRESHOLD_M",
+    "INVALID_POLICIES",
     "POOLED_ALL",
     "POOLED_MEAN",
     "REAL_TIME_BUDGET_S",
@@ -69,6 +73,7 @@ __all__ = [
     "error_band",
     "evaluate_estimates",
     "evaluate_sequence",
+    "held_estimate_index",
     "innovation_whiteness",
     "mahalanobis_squared",
     "nees",
@@ -78,6 +83,7 @@ __all__ = [
     "normalized_bias",
     "outlier_rejection_stats",
     "outlier_rejection_stats_from_estimates",
+    "policy_note",
     "pool_metrics",
     "pose_error_tangent",
     "recovery_frames",

@@ -24,6 +24,12 @@ Invalid estimates (``Estimate.valid`` False: the tracker has no pose yet) enter 
   detections when it scores "DOPE (ideal)".
 - ``"as_given"``: the pose and velocity are scored as they are (the reference scores whatever
   a tracker wrote on each frame).
+- ``"hold"``: the reference's treatment of its DOPE row (``data_loader.load_dope`` with
+  ``simulate_inference``): frames before the first valid estimate are dropped, and an invalid
+  frame after it is scored with the last valid estimate (pose and velocity held). The default of
+  the ``paper`` fault preset (``roft-sim run``, ``roft-sim paper``).
+
+Every table that prints these metrics says which policy produced it (:func:`policy_note`).
 """
 
 from __future__ import annotations
@@ -59,9 +65,21 @@ __all__ = [
     "pool_metrics",
     "POOLED_ALL",
     "POOLED_MEAN",
+    "INVALID_POLICIES",
+    "held_estimate_index",
+    "policy_note",
 ]
 
-InvalidPolicy = Literal["failure", "exclude", "as_given"]
+InvalidPolicy = Literal["failure", "exclude", "as_given", "hold"]
+INVALID_POLICIES: tuple[str, ...] = ("failure", "exclude", "as_given", "hold")
+"""Every :data:`InvalidPolicy`, in the order the CLI lists them."""
+_POLICY_NOTES = {
+    "failure": "frames without a tracker pose are failures (ADD = inf, left out of the RMSEs)",
+    "exclude": "frames without a tracker pose are left out",
+    "as_given": "frames without a tracker pose are scored as given",
+    "hold": "frames before the first tracker pose are left out, later frames without one hold "
+    "the last (the reference's DOPE policy)",
+}
 POOLED_ALL = "ALL"
 """Key of the frame-pooled entry of :func:`pool_metrics`."""
 POOLED_MEAN = "MEAN"
@@ -69,6 +87,27 @@ POOLED_MEAN = "MEAN"
 
 _CM = 100.0
 _DEG = 180.0 / np.pi
+
+
+def policy_note(invalid: str) -> str:
+    """One line for a table: which invalid-estimate policy produced it, in words."""
+    if invalid not in _POLICY_NOTES:
+        raise ValueError(f"invalid must be one of {INVALID_POLICIES}, got {invalid!r}")
+    return f"invalid estimates: {invalid} ({_POLICY_NOTES[invalid]})"
+
+
+def held_estimate_index(valid: ArrayLike) -> NDArray[np.int64]:
+    """(N,) index of the last valid frame at or before each frame; -1 before the first.
+
+    Args:
+        valid: (N,) bool, True where the tracker reported a pose.
+    """
+    ok = np.asarray(valid, dtype=bool)
+    if ok.ndim != 1:
+        raise ValueError(f"valid must have shape (N,), got {ok.shape}")
+    marks = np.where(ok, np.arange(ok.size, dtype=np.int64), np.int64(-1))
+    held: NDArray[np.int64] = np.maximum.accumulate(marks)
+    return held
 
 
 def _rmse(norms: F64) -> float:
@@ -199,7 +238,8 @@ def evaluate_sequence(
             given it is scored instead of ``v_obj_est``/``w_est``, with ``v = v_o + w x t_gt``.
             NaN rows are left out of the velocity RMSE.
         valid: (N,) bool, False where the tracker had no pose; None = all valid.
-        invalid: what invalid frames do: ``"failure"``, ``"exclude"`` or ``"as_given"``.
+        invalid: what invalid frames do: ``"failure"``, ``"exclude"``, ``"as_given"`` or
+            ``"hold"`` (module docstring).
         step_times_s: (S,) tracker step times [s] for the timing statistics.
         with_adds: also compute ADD-S and its AUC (KD-tree; slower).
         max_threshold_m: AUC threshold cap [m].
@@ -214,8 +254,10 @@ def evaluate_sequence(
         raise ValueError(
             f"T_est and T_gt must both have shape (N, 4, 4), got {T_est.shape} and {T_gt.shape}"
         )
-    if invalid not in ("failure", "exclude", "as_given"):
-        raise ValueError(f"invalid must be 'failure', 'exclude' or 'as_given', got {invalid!r}")
+    if invalid not in INVALID_POLICIES:
+        raise ValueError(
+            f"invalid must be 'failure', 'exclude', 'as_given' or 'hold', got {invalid!r}"
+        )
     ok = np.ones(n, bool) if valid is None else np.asarray(valid, dtype=bool)
     if ok.shape != (n,):
         raise ValueError(f"valid must have shape ({n},), got {ok.shape}")
@@ -225,9 +267,15 @@ def evaluate_sequence(
     w_est = _as_rows("w_est", w_est, n, 3)
     twist = _as_rows("spatial_twist_est", spatial_twist_est, n, 6)
 
-    keep = ok if invalid == "exclude" else np.ones(n, bool)
+    source = np.arange(n)  # the estimate scored on each frame
+    if invalid == "hold":
+        source = held_estimate_index(ok)
+        keep = source >= 0
+    else:
+        keep = ok if invalid == "exclude" else np.ones(n, bool)
     index = np.flatnonzero(keep)
-    Te, Tg, ok_k = T_est[index], T_gt[index], ok[index]
+    from_k = source[index]
+    Te, Tg, ok_k = T_est[from_k], T_gt[index], ok[from_k]
     f = index.size
 
     add = add_distances(Te, Tg, model_points_m)
@@ -247,10 +295,10 @@ def evaluate_sequence(
     w_err = np.full((f, 3), np.nan)
     if v_obj_gt is not None and w_gt is not None:
         if twist is not None:
-            w_hat = twist[index, 3:]
-            v_hat = v_obj_from_v_o(twist[index, :3], w_hat, Tg[:, :3, 3])
+            w_hat = twist[from_k, 3:]
+            v_hat = v_obj_from_v_o(twist[from_k, :3], w_hat, Tg[:, :3, 3])
         elif v_obj_est is not None and w_est is not None:
-            v_hat, w_hat = v_obj_est[index], w_est[index]
+            v_hat, w_hat = v_obj_est[from_k], w_est[from_k]
         else:
             v_hat = w_hat = None
         if v_hat is not None and w_hat is not None:

@@ -242,7 +242,7 @@ def test_cli_check_json_and_other_formats(tmp_path: Path, capsys):
     result = json.loads(capsys.readouterr().out)
     assert sorted(r["format"] for r in result["sequences"]) == ["bop", "fast-ycb", "hdf5"]
     assert all(r["problems"] == [] for r in result["sequences"])
-    depth = tmp_path / "bop" / "plate_seq" / "depth" / "000001.png"
+    depth = tmp_path / "bop" / "000001" / "depth" / "000001.png"  # scenes are numbered
     depth.write_bytes(depth.read_bytes()[:40])
     assert main(["dataset", "check", str(tmp_path / "bop")]) == 1
     assert "frame 1 depth" in capsys.readouterr().out

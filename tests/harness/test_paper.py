@@ -91,7 +91,7 @@ def test_plan_uses_the_ablation_configs_and_the_paper_faults(tmp_path):
     gt = by_label["roft_gt_mask_pose"].options
     assert (gt.poses, gt.masks) == ("gt", "gt")
     hold = by_label["detector"].options
-    assert hold.flow == "none" and hold.masks == "none" and hold.invalid == "exclude"
+    assert hold.flow == "none" and hold.masks == "none" and hold.invalid == "hold"
     assert all(c.options.faults.name == "paper" and c.options.seed == 3 for c in cells)
 
 
@@ -141,7 +141,7 @@ def test_full_paper_run_at_640x480_with_short_sequences(tmp_path, capsys):
     results = record["results"]
     assert {r.key for r in paper_rows()} == set(results)
     for key, entries in results.items():
-        # frames before a sequence's first detection are left out (invalid = exclude)
+        # frames before a sequence's first detection are left out (invalid = hold)
         assert 0 < entries[ALL]["frames"] <= 6 * 24, key
         assert set(entries) == {*paper_tables().objects, ALL}
     table4 = (out / "table4.csv").read_text().splitlines()

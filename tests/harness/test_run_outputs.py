@@ -97,19 +97,25 @@ def test_invalid_frames_are_rows_of_zeros(sequences, tmp_path):
     assert result.metrics["box_a"]["add_auc_pct"] == 0.0
 
 
-def test_velocity_estimate_is_v_o_of_the_estimate_without_a_spatial_twist(echo_run):
+def test_velocity_estimate_gives_the_estimate_back_under_the_reference_conversion(echo_run):
+    """Without a spatial twist, v_o = v_obj - w x t_gt, so that the reference's
+    ``v = v_o + w x t_gt`` (evaluate.py, with the GROUND-TRUTH position) yields v_obj."""
     result, out = echo_run
     rows = read_velocity_estimate(out / "box_a" / "velocity_estimate.txt")
-    assert rows.shape == (len(result.runs[0].estimates), 6)
-    for k, e in enumerate(result.runs[0].estimates):
+    run = result.runs[0]
+    assert rows.shape == (len(run.estimates), 6)
+    t_gt = run.ground_truth.T_cam_obj[:, :3, 3]
+    for k, e in enumerate(run.estimates):
         if not e.valid:
             np.testing.assert_array_equal(rows[k], 0.0)
             continue
-        t = e.T_cam_obj[:3, 3]
-        expected = e.v_obj_mps - np.cross(e.w_radps, t)  # v_o = v - w x t (conventions.md)
-        np.testing.assert_allclose(rows[k, :3], expected, atol=1e-15)
-        np.testing.assert_allclose(rows[k, :3], v_o_from_v_obj(e.v_obj_mps, e.w_radps, t))
+        reference_v = rows[k, :3] + np.cross(rows[k, 3:], t_gt[k])
+        np.testing.assert_allclose(reference_v, e.v_obj_mps, atol=1e-15)
+        np.testing.assert_allclose(rows[k, :3], v_o_from_v_obj(e.v_obj_mps, e.w_radps, t_gt[k]))
         np.testing.assert_array_equal(rows[k, 3:], e.w_radps)
+        # and not with the estimate's own position (they differ: the detector is offset)
+        own = v_o_from_v_obj(e.v_obj_mps, e.w_radps, e.T_cam_obj[:3, 3])
+        assert np.abs(rows[k, :3] - own).max() > 1e-5
 
 
 def test_velocity_estimate_is_the_spatial_twist_when_reported(roft_run):

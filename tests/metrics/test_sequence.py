@@ -128,8 +128,61 @@ def test_invalid_frame_policies():
     assert given.frames_rmse == 4
     assert given.rmse_t_cm > 10  # the identity pose is ~70 cm away
 
-    with pytest.raises(ValueError, match="'failure', 'exclude' or 'as_given'"):
+    with pytest.raises(ValueError, match="'failure', 'exclude', 'as_given' or 'hold'"):
         evaluate_sequence(T_est, gt.T_cam_obj, PTS, invalid="drop")  # type: ignore[arg-type]
+
+
+def _reference_dope_hold(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The reference's DOPE treatment once the stream is delayed and subsampled
+    (``data_loader.load_dope``, ``simulate_inference``), transcribed: start at the first row
+    whose x, y, z are all non-zero, then replace every missing (zero) row by the previous one.
+    Returns the rows and the frame index of each."""
+    i_0 = 0
+    for i in range(rows.shape[0]):
+        if rows[i, 0] != 0.0 and rows[i, 1] != 0.0 and rows[i, 2] != 0.0:
+            i_0 = i
+            break
+    data = rows[i_0:].copy()
+    for i in range(1, data.shape[0]):
+        if data[i, 0] == 0.0 and data[i, 1] == 0.0 and data[i, 2] == 0.0:
+            data[i, :] = data[i - 1, :]
+    return data, np.arange(i_0, rows.shape[0])
+
+
+def test_hold_policy_matches_the_reference_dope_treatment():
+    gt = _gt(9, seed=4)
+    rng = np.random.default_rng(1)
+    T_est = gt.T_cam_obj.copy()
+    T_est[:, :3, 3] += rng.normal(0, 0.01, (9, 3))
+    valid = np.array([False, False, True, True, False, False, True, False, True])
+    T_est[~valid] = np.eye(4)  # what an invalid estimate holds
+    v_est = rng.normal(0, 0.2, (9, 3))
+    m = evaluate_sequence(
+        T_est,
+        gt.T_cam_obj,
+        PTS,
+        valid=valid,
+        invalid="hold",
+        v_obj_gt=gt.v_obj_mps,
+        w_gt=gt.w_radps,
+        v_obj_est=v_est,
+        w_est=gt.w_radps,
+    )
+    rows = np.zeros((9, 6))
+    rows[valid, :3] = T_est[valid, :3, 3]
+    rows[valid, 3:] = v_est[valid]
+    held, frames = _reference_dope_hold(rows)
+    assert m.frame_index.tolist() == frames.tolist() == list(range(2, 9))
+    assert m.frames_invalid == 5
+    t_err = held[:, :3] - gt.T_cam_obj[frames, :3, 3]
+    assert m.rmse_t_cm == pytest.approx(100 * np.sqrt(np.mean(np.sum(t_err**2, axis=1))))
+    v_err = held[:, 3:] - gt.v_obj_mps[frames]
+    assert m.rmse_v_cmps == pytest.approx(100 * np.sqrt(np.mean(np.sum(v_err**2, axis=1))))
+    assert np.isfinite(m.add_m).all()  # nothing is a failure under hold
+    none_valid = evaluate_sequence(
+        T_est, gt.T_cam_obj, PTS, valid=np.zeros(9, bool), invalid="hold"
+    )
+    assert none_valid.frames == 0
 
 
 def test_pool_all_pools_frames_and_mean_averages_entries():
