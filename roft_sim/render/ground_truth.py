@@ -23,7 +23,32 @@ from roft_sim.records import FlowField
 F64 = NDArray[np.float64]
 F32 = NDArray[np.float32]
 
-__all__ = ["RenderedFrame", "ground_truth_flow", "body_motions"]
+__all__ = [
+    "RenderedFrame",
+    "ground_truth_flow",
+    "body_motions",
+    "SEGMENT_BACKGROUND",
+    "SEGMENT_OBJECT",
+    "SEGMENT_HAND",
+    "SEGMENT_DISTRACTOR",
+    "segment_of_body",
+]
+
+SEGMENT_BACKGROUND, SEGMENT_OBJECT, SEGMENT_HAND, SEGMENT_DISTRACTOR = 0, 1, 2, 3
+"""Ground-truth segment ids (:meth:`RenderedFrame.segment_ids`): background (static world, or
+nothing drawn), the tracked object, the hand (every link), any distractor object."""
+
+
+def segment_of_body(body_name: str) -> int:
+    """Segment id of a rigid body by its name (``static``, ``object``, ``hand...``,
+    ``distractor...``)."""
+    if body_name == "object":
+        return SEGMENT_OBJECT
+    if body_name.startswith("hand"):
+        return SEGMENT_HAND
+    if body_name.startswith("distractor"):
+        return SEGMENT_DISTRACTOR
+    return SEGMENT_BACKGROUND
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -64,6 +89,17 @@ class RenderedFrame:
     order: the static world (``inv(T_world_cam)``), the object, the hand (if any)."""
     body_names: tuple[str, ...]
     """Names of the bodies, e.g. ``("static", "object", "hand")``."""
+
+    def segment_ids(self) -> NDArray[np.uint8]:
+        """(H, W) uint8 ground-truth segment id per pixel: :data:`SEGMENT_BACKGROUND`,
+        :data:`SEGMENT_OBJECT`, :data:`SEGMENT_HAND` or :data:`SEGMENT_DISTRACTOR` (exact
+        occlusion: each pixel shows the nearest surface)."""
+        if self.body_index is None:
+            raise ValueError("segment ids need the segmentation; render with segmentation=True")
+        lut = np.array(
+            [segment_of_body(n) for n in self.body_names] + [SEGMENT_BACKGROUND], dtype=np.uint8
+        )
+        return lut[self.body_index]  # index -1 (nothing) -> the last entry, background
 
     @property
     def shape(self) -> tuple[int, int]:

@@ -26,7 +26,8 @@ from roft_sim.geometry import (
 )
 from roft_sim.render.ground_truth import RenderedFrame
 from roft_sim.render.offscreen import OffscreenRenderer
-from roft_sim.scene.builder import BODY_NAMES, BuiltScene, build_scene
+from roft_sim.scene.articulated_hand import FingerMotion, HandGrasp, synthesise_grasp
+from roft_sim.scene.builder import BuiltScene, build_scene
 from roft_sim.scene.camera_motion import camera_poses
 from roft_sim.sensors.depth_noise import apply_depth_noise
 
@@ -120,7 +121,13 @@ class SceneRenderer:
         )
         self._data = mujoco.MjData(self.built.model)
         self._segmentation = segmentation
-        self._body_names = BODY_NAMES if self.built.hand_mocap is not None else BODY_NAMES[:2]
+        self._body_names = self.built.body_names
+        self.grasp: HandGrasp | None = None
+        """The articulated hand's synthesised grasp (None without one)."""
+        self.finger_motion: FingerMotion | None = None
+        """The articulated hand's finger motion (None without one)."""
+        if self.built.hand is not None:
+            self.grasp, self.finger_motion = self._plan_hand(scenario)
         self._renderer = OffscreenRenderer(
             self.built.model, intrinsics.width_px, intrinsics.height_px
         )
@@ -147,6 +154,25 @@ class SceneRenderer:
         return self._body_names
 
     # -- kinematics ---------------------------------------------------------------------------
+    def _plan_hand(self, scenario: Scenario) -> tuple[HandGrasp, FingerMotion]:
+        """Synthesises the articulated hand's grasp and draws its finger motion, both from the
+        scenario's ``hand`` stream (so per object and trajectory seed)."""
+        b = self.built
+        assert b.hand is not None
+        rng = scenario.rng("hand")
+        grasp = synthesise_grasp(
+            b.model,
+            self._data,
+            b.hand,
+            b.object_geom_id,
+            b.object_mocap,
+            b.object_half_extents_m,
+            scenario.scene.hand,
+            rng,
+        )
+        duration_s = scenario.n_frames / scenario.fps
+        return grasp, FingerMotion(scenario.scene.hand.motion, grasp, duration_s, rng)
+
     def state_at(self, t_s: float) -> SceneState:
         """Exact poses and velocities at scenario time ``t_s`` [s] (``0 <= t_s`` and within the
         trajectory; times just outside are clamped onto it)."""
@@ -177,10 +203,17 @@ class SceneRenderer:
         d.mocap_quat[b.camera_mocap] = quat_from_matrix(state.T_world_cam[:3, :3])
         d.mocap_pos[b.object_mocap] = state.T_world_obj[:3, 3]
         d.mocap_quat[b.object_mocap] = quat_from_matrix(state.T_world_obj[:3, :3])
-        if b.hand_mocap is not None:  # the hand's frame is the object's (fixed grasp)
+        if self.grasp is not None:
+            T_world_hand = state.T_world_obj @ self.grasp.T_obj_hand
+            d.mocap_pos[b.hand_mocap] = T_world_hand[:3, 3]
+            d.mocap_quat[b.hand_mocap] = quat_from_matrix(T_world_hand[:3, :3])
+        elif b.hand_mocap is not None:  # the proxy's frame is the object's (fixed grasp)
             d.mocap_pos[b.hand_mocap] = state.T_world_obj[:3, 3]
             d.mocap_quat[b.hand_mocap] = quat_from_matrix(state.T_world_obj[:3, :3])
         mujoco.mj_kinematics(b.model, d)
+        if self.finger_motion is not None:
+            assert b.hand is not None
+            self.finger_motion.pose(b.model, d, b.hand, b.object_geom_id, state.t_s)
         mujoco.mj_camlight(b.model, d)
         assert self._renderer is not None
         self._renderer.update(d, b.camera_id)
@@ -196,6 +229,7 @@ class SceneRenderer:
         t_s = self.scenario.frame_time_s(k)
         state = self.state_at(t_s)
         self._pose_scene(state)
+        T_cam_bodies = self._body_poses_cam(state)
         blur = opts.motion_blur_subframes > 1
         out = self._renderer.render(
             rgb=not blur, depth=True, segmentation=self._segmentation, shadows=opts.shadows
@@ -218,10 +252,6 @@ class SceneRenderer:
             mask = seg == self.built.object_geom_id
             lut = np.append(self.built.geom_body, np.int8(-1))  # index -1 -> -1
             body = lut[seg]
-        T_cam_world = invert_transform(state.T_world_cam)
-        bodies = [T_cam_world, state.T_cam_obj]
-        if self.built.hand_mocap is not None:
-            bodies.append(state.T_cam_obj)  # hand frame = object frame
         return RenderedFrame(
             k=k,
             t_s=t_s,
@@ -236,9 +266,30 @@ class SceneRenderer:
             w_radps=state.w_radps,
             v_o_mps=v_o_from_v_obj(state.v_obj_mps, state.w_radps, state.T_cam_obj[:3, 3]),
             T_world_cam=state.T_world_cam,
-            T_cam_bodies=np.stack(bodies),
+            T_cam_bodies=T_cam_bodies,
             body_names=self._body_names,
         )
+
+    def _body_poses_cam(self, state: SceneState) -> F64:
+        """(B, 4, 4) pose of every rigid body of :attr:`body_names` in the camera frame [m]: the
+        static world and the object exactly from the trajectories, the proxy hand as the object,
+        the articulated hand's links where MuJoCo's kinematics put them (call after
+        :meth:`_pose_scene`)."""
+        T_cam_world = invert_transform(state.T_world_cam)
+        bodies = [T_cam_world, state.T_cam_obj]
+        if self.built.hand is not None:
+            for body_id in self.built.hand.body_ids:
+                bodies.append(T_cam_world @ self._body_pose_world(body_id))
+        elif self.built.hand_mocap is not None:
+            bodies.append(state.T_cam_obj)  # proxy frame = object frame
+        return np.stack(bodies)
+
+    def _body_pose_world(self, body_id: int) -> F64:
+        """(4, 4) pose of MuJoCo body ``body_id`` in the world after the last kinematics [m]."""
+        T = np.eye(4)
+        T[:3, :3] = self._data.xmat[body_id].reshape(3, 3)
+        T[:3, 3] = self._data.xpos[body_id]
+        return T
 
     def _blurred_rgb(self, t_s: float) -> NDArray[np.uint8]:
         """Mean of ``n`` renders at sub-frame times spread evenly over the exposure, centred on

@@ -21,6 +21,9 @@ __all__ = [
     "TableConfig",
     "BackgroundConfig",
     "LightConfig",
+    "HAND_KINDS",
+    "FingerConfig",
+    "HandMotionConfig",
     "HandConfig",
     "SceneConfig",
     "RenderConfig",
@@ -149,17 +152,136 @@ def _default_lights() -> tuple[LightConfig, ...]:
     )
 
 
+HandKind = Literal["proxy", "articulated"]
+HAND_KINDS: tuple[str, ...] = ("proxy", "articulated")
+"""Hand models: ``proxy`` (rigid capsules fixed in the object frame) or ``articulated`` (a
+jointed hand whose grasp is synthesised against the object mesh, :mod:`roft_sim.scene.hand`)."""
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class FingerConfig:
+    """One digit of the articulated hand: three phalanges on three flexion hinges.
+
+    Lengths are joint-to-joint segment lengths [m]. For the four fingers the segments are the
+    proximal, middle and distal phalanges (joints MCP, PIP, DIP); for the thumb they are the
+    metacarpal, proximal and distal phalanges (joints CMC, MCP, IP).
+    """
+
+    name: str
+    """Digit name (``index``, ``middle``, ``ring``, ``little``, ``thumb``); names the bodies."""
+    lengths_m: tuple[float, float, float]
+    """Segment lengths, proximal to distal [m]."""
+    radius_m: float
+    """Radius of the proximal segment [m]; the middle and distal ones are 0.93 and 0.86 of it."""
+    flexion_limits_rad: tuple[float, float, float]
+    """Largest active flexion of each joint, proximal to distal [rad] (the range starts at 0,
+    the straight digit)."""
+
+    def __post_init__(self) -> None:
+        if not self.name or not self.name.isidentifier():
+            raise ConfigError(f"hand finger name must be an identifier, got {self.name!r}")
+        _check_positive(
+            f"hand.{self.name}",
+            radius_m=self.radius_m,
+            **{f"lengths_m[{i}]": v for i, v in enumerate(self.lengths_m)},
+        )
+        limits = np.asarray(self.flexion_limits_rad, dtype=np.float64)
+        if not (np.isfinite(limits).all() and (limits > 0).all() and (limits <= np.pi).all()):
+            raise ConfigError(
+                f"hand.{self.name}.flexion_limits_rad must lie in (0, pi], got "
+                f"{self.flexion_limits_rad}"
+            )
+
+
+def _digit(name: str, lengths_mm: tuple[float, float, float], radius_mm: float,
+           limits_deg: tuple[float, float, float]) -> FingerConfig:  # fmt: skip
+    return FingerConfig(
+        name=name,
+        lengths_m=(lengths_mm[0] / 1000, lengths_mm[1] / 1000, lengths_mm[2] / 1000),
+        radius_m=radius_mm / 1000,
+        flexion_limits_rad=(
+            float(np.radians(limits_deg[0])),
+            float(np.radians(limits_deg[1])),
+            float(np.radians(limits_deg[2])),
+        ),
+    )
+
+
+def _default_fingers() -> tuple[FingerConfig, ...]:
+    # Segment lengths: adult means rounded to the millimetre after Buryanov & Kotiuk,
+    # "Proportions of hand segments", Int. J. Morphol. 28(3), 2010 (phalanx lengths) scaled to a
+    # 19 cm hand (ANSUR II adult mean hand length). Flexion limits: active range of motion of
+    # Hume et al., "Functional range of motion of the joints of the hand", J. Hand Surg. 15A,
+    # 1990 (MCP 100, PIP 105, DIP 85 deg; thumb MCP 56, IP 73 deg; CMC flexion 50 deg).
+    return (
+        _digit("index", (43.0, 25.0, 19.0), 9.0, (100.0, 105.0, 85.0)),
+        _digit("middle", (47.0, 29.0, 20.0), 9.3, (100.0, 105.0, 85.0)),
+        _digit("ring", (44.0, 28.0, 19.0), 8.8, (100.0, 105.0, 85.0)),
+        _digit("little", (35.0, 21.0, 18.0), 7.8, (100.0, 105.0, 85.0)),
+    )
+
+
+def _default_thumb() -> FingerConfig:
+    return _digit("thumb", (40.0, 32.0, 27.0), 10.5, (50.0, 56.0, 73.0))
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class HandMotionConfig:
+    """How the articulated hand's fingers move while it holds the object (seeded from the
+    scenario's ``hand`` stream). Fingers only ever OPEN from the synthesised grasp (flexion
+    decreases), and every frame is checked against the object: a finger whose planned opening
+    would enter the object opens less (MuJoCo distance queries)."""
+
+    flexion_jitter_rad: float = 0.07
+    """Peak opening of the slow flexion changes of each digit [rad] (about 4 deg)."""
+    jitter_frequency_hz: float = 0.4
+    """Mean frequency of the slow flexion changes [Hz] (each digit draws its own in
+    [0.5, 1.5] x this)."""
+    regrip_rate_hz: float = 0.15
+    """Mean rate of re-grips [1/s] (Poisson): one or more digits open and close again."""
+    regrip_opening_rad: float = 0.45
+    """Peak opening of a digit during a re-grip [rad] (about 26 deg)."""
+    regrip_duration_s: float = 0.6
+    """Duration of one re-grip [s] (raised-cosine opening and closing)."""
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.flexion_jitter_rad) and self.flexion_jitter_rad >= 0):
+            raise ConfigError(
+                f"hand.motion.flexion_jitter_rad must be >= 0, got {self.flexion_jitter_rad}"
+            )
+        if not (np.isfinite(self.regrip_rate_hz) and self.regrip_rate_hz >= 0):
+            raise ConfigError(f"hand.motion.regrip_rate_hz must be >= 0, got {self.regrip_rate_hz}")
+        if not (np.isfinite(self.regrip_opening_rad) and 0 <= self.regrip_opening_rad <= 1.5):
+            raise ConfigError(
+                f"hand.motion.regrip_opening_rad must lie in [0, 1.5], got "
+                f"{self.regrip_opening_rad}"
+            )
+        _check_positive(
+            "hand.motion",
+            jitter_frequency_hz=self.jitter_frequency_hz,
+            regrip_duration_s=self.regrip_duration_s,
+        )
+
+
 @dataclass(frozen=True, slots=True, kw_only=True)
 class HandConfig:
-    """A simple hand occluder that holds the object: a palm and fingers made of capsules.
+    """A hand that holds the object, of one of two kinds (``kind``).
 
-    The hand moves rigidly with the object (the grasp does not change). The palm lies against the
-    object face ``palm_side``; the fingers lie across the ``+wrap_axis`` face and the thumb across
-    the ``-wrap_axis`` face, so the hand covers part of the object from most viewpoints.
+    ``articulated`` (the default kind): a palm and five digits of three phalanges on flexion
+    hinges, sized by ``palm_*_m``, ``fingers`` and ``thumb_digit``; per scenario a grasp is
+    synthesised against the object mesh (:func:`roft_sim.scene.hand.synthesise_grasp`) and the
+    fingers move during the sequence (``motion``).
+
+    ``proxy``: rigid capsules that move with the object (the grasp does not change). The palm
+    lies against the object face ``palm_side``; the fingers lie across the ``+wrap_axis`` face and
+    the thumb across the ``-wrap_axis`` face, so the hand covers part of the object from most
+    viewpoints. ``palm_side`` ... ``thumb`` apply to the proxy only.
     """
 
     enabled: bool = False
     """Add the hand."""
+    kind: HandKind = "articulated"
+    """``articulated`` (jointed hand with a synthesised grasp) or ``proxy`` (rigid capsules)."""
     palm_side: Literal["+x", "-x", "+y", "-y", "+z", "-z"] = "-x"
     """Object-frame face the palm rests against."""
     wrap_axis: Literal["x", "y", "z"] = "z"
@@ -177,8 +299,43 @@ class HandConfig:
     """Add a thumb on the opposite face."""
     skin_rgb: tuple[float, float, float] = (0.86, 0.66, 0.55)
     """Skin colour, RGB in [0, 1] (the hand is plain, untextured)."""
+    palm_length_m: float = 0.1
+    """Articulated: palm length, wrist crease to the knuckle (MCP) line [m] (about half of a
+    19 cm adult hand)."""
+    palm_width_m: float = 0.085
+    """Articulated: palm breadth at the knuckles [m] (ANSUR II adult mean hand breadth, rounded)."""
+    palm_thickness_m: float = 0.028
+    """Articulated: palm thickness [m]."""
+    fingers: tuple[FingerConfig, ...] = field(default_factory=_default_fingers)
+    """Articulated: the fingers, from the thumb side (index) to the little finger."""
+    thumb_digit: FingerConfig = field(default_factory=_default_thumb)
+    """Articulated: the thumb (metacarpal, proximal and distal segments)."""
+    skin_specular: float = 0.25
+    """Articulated: specular reflection of the skin material in [0, 1] (skin is slightly
+    glossy)."""
+    contact_gap_m: float = 0.0003
+    """Articulated: clearance at which a closing segment counts as touching the object [m]."""
+    motion: HandMotionConfig = field(default_factory=HandMotionConfig)
+    """Articulated: the fingers' motion during the sequence (``[scene.hand.motion]``)."""
 
     def __post_init__(self) -> None:
+        _check_choice("hand.kind", self.kind, HAND_KINDS)
+        _check_positive(
+            "hand",
+            palm_length_m=self.palm_length_m,
+            palm_width_m=self.palm_width_m,
+            palm_thickness_m=self.palm_thickness_m,
+        )
+        if not 1 <= len(self.fingers) <= 4:
+            raise ConfigError(f"hand.fingers must list 1 to 4 fingers, got {len(self.fingers)}")
+        names = [f.name for f in self.fingers] + [self.thumb_digit.name]
+        if len(set(names)) != len(names):
+            raise ConfigError(f"hand digit names must be unique, got {names}")
+        if not (np.isfinite(self.contact_gap_m) and 0 < self.contact_gap_m <= 0.001):
+            raise ConfigError(
+                f"hand.contact_gap_m must lie in (0, 0.001] m, got {self.contact_gap_m}"
+            )
+        _check_unit_interval("hand", skin_specular=self.skin_specular)
         _check_choice("hand.palm_side", self.palm_side, ("+x", "-x", "+y", "-y", "+z", "-z"))
         _check_choice("hand.wrap_axis", self.wrap_axis, ("x", "y", "z"))
         _check_positive(
