@@ -25,6 +25,7 @@ from roft_sim.geometry import (
     v_o_from_v_obj,
 )
 from roft_sim.render.ground_truth import RenderedFrame
+from roft_sim.render.image_formation import apply_image_formation, rolling_shutter_band_times
 from roft_sim.render.offscreen import OffscreenRenderer
 from roft_sim.scene.articulated_hand import FingerMotion, HandGrasp, synthesise_grasp
 from roft_sim.scene.builder import BuiltScene, build_scene
@@ -231,12 +232,18 @@ class SceneRenderer:
         self._pose_scene(state)
         T_cam_bodies = self._body_poses_cam(state)
         blur = opts.motion_blur_subframes > 1
+        rolling = opts.image_formation.rolling_shutter
         out = self._renderer.render(
-            rgb=not blur, depth=True, segmentation=self._segmentation, shadows=opts.shadows
+            rgb=not (blur or rolling),
+            depth=True,
+            segmentation=self._segmentation,
+            shadows=opts.shadows,
         )
         rgb = out.rgb
         if blur:
             rgb = self._blurred_rgb(t_s)
+        elif rolling:
+            rgb = self._rolling_shutter_rgb(t_s)
         assert rgb is not None and out.depth_m is not None
         depth = out.depth_m
         sensor_depth = apply_depth_noise(
@@ -245,6 +252,9 @@ class SceneRenderer:
             self.scenario.rng("depth_noise", k),
             fx_px=self.intrinsics.fx_px,
             rgb=rgb,
+        )
+        rgb = apply_image_formation(
+            rgb, opts.image_formation, self.scenario.rng("image_formation", k)
         )
         mask = seg = body = None
         if out.geom_id is not None:
@@ -290,6 +300,27 @@ class SceneRenderer:
         T[:3, :3] = self._data.xmat[body_id].reshape(3, 3)
         T[:3, 3] = self._data.xpos[body_id]
         return T
+
+    def _rolling_shutter_rgb(self, t_s: float) -> NDArray[np.uint8]:
+        """The rolling-shutter image: each band of rows rendered at its own exposure time
+        (:func:`~roft_sim.render.image_formation.rolling_shutter_band_times`; times before 0 are
+        clamped to 0 like the motion blur's)."""
+        config = self.scenario.render.image_formation
+        height = self.intrinsics.height_px
+        times, band_of_row = rolling_shutter_band_times(
+            height, t_s, config.rolling_shutter_readout_s, config.rolling_shutter_bands
+        )
+        out = np.empty(self.intrinsics.shape + (3,), dtype=np.uint8)
+        assert self._renderer is not None
+        for band, t_band in enumerate(times):
+            self._pose_scene(self.state_at(max(0.0, float(t_band))))
+            sub = self._renderer.render(
+                rgb=True, depth=False, shadows=self.scenario.render.shadows
+            ).rgb
+            assert sub is not None
+            rows = band_of_row == band
+            out[rows] = sub[rows]
+        return out
 
     def _blurred_rgb(self, t_s: float) -> NDArray[np.uint8]:
         """Mean of ``n`` renders at sub-frame times spread evenly over the exposure, centred on

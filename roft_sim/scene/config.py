@@ -26,6 +26,7 @@ __all__ = [
     "HandMotionConfig",
     "HandConfig",
     "SceneConfig",
+    "ImageFormationConfig",
     "RenderConfig",
     "CameraSwayConfig",
     "CameraMotionConfig",
@@ -377,6 +378,69 @@ class SceneConfig:
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
+class ImageFormationConfig:
+    """The colour camera's image formation (``[render.image_formation]``): exposure, gamma,
+    Poisson-Gaussian sensor noise and a rolling shutter, applied to the rendered rgb
+    (:mod:`roft_sim.render.image_formation`). Ground truth is unaffected.
+
+    The defaults describe a RealSense-D415-like colour camera (an OmniVision OV2740-class
+    1.4 um-pixel rolling-shutter CMOS at 30 fps): full well and read noise are typical values of
+    that pixel class (EMVA 1288 data sheets of small-pixel CMOS sensors), not measurements of a
+    D415; the readout time assumes the rows of a 1080p frame read out over about 80 % of the
+    33 ms frame interval. Off by default: Fast-YCB's images are clean renders.
+    """
+
+    enabled: bool = False
+    """Apply the model (off: the rendered image as is)."""
+    exposure_gain: float = 1.0
+    """Multiplies the linear irradiance (1 = as rendered; > 1 brighter, clipping at full well)."""
+    gamma: float = 2.2
+    """Encoding gamma: rendered values are linearised as ``(rgb / 255) ** gamma`` and encoded
+    back with ``1 / gamma``."""
+    full_well_e: float = 4500.0
+    """Electrons of a white (saturated) pixel: sets the shot-noise level [e-]."""
+    read_noise_e: float = 2.5
+    """Standard deviation of the signal-independent (read) noise [e-]."""
+    shot_noise: bool = True
+    """Draw the signal as Poisson(electrons) (off: only the Gaussian read noise)."""
+    rolling_shutter_readout_s: float = 0.026
+    """Time from the first row's exposure to the last row's [s]; 0 = global shutter. Row r is
+    exposed at ``t_k + (r / (H - 1) - 0.5) * readout``, so the middle row is at the frame time
+    of the ground truth."""
+    rolling_shutter_bands: int = 0
+    """Renders per frame for the rolling shutter: the rows are split into this many bands, each
+    rendered at its own mid-time (0 = one render per row: exact, slowest)."""
+
+    def __post_init__(self) -> None:
+        _check_positive(
+            "render.image_formation",
+            exposure_gain=self.exposure_gain,
+            gamma=self.gamma,
+            full_well_e=self.full_well_e,
+        )
+        if not (np.isfinite(self.read_noise_e) and self.read_noise_e >= 0):
+            raise ConfigError(
+                f"render.image_formation.read_noise_e must be >= 0, got {self.read_noise_e}"
+            )
+        readout = self.rolling_shutter_readout_s
+        if not (np.isfinite(readout) and 0 <= readout <= 1.0):
+            raise ConfigError(
+                f"render.image_formation.rolling_shutter_readout_s must lie in [0, 1] s, got "
+                f"{readout}"
+            )
+        if self.rolling_shutter_bands < 0:
+            raise ConfigError(
+                f"render.image_formation.rolling_shutter_bands must be >= 0 (0 = every row), got "
+                f"{self.rolling_shutter_bands}"
+            )
+
+    @property
+    def rolling_shutter(self) -> bool:
+        """The model is on and rows are exposed in sequence."""
+        return self.enabled and self.rolling_shutter_readout_s > 0
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
 class RenderConfig:
     """How images are rendered; ground truth is unaffected by every option here."""
 
@@ -397,6 +461,9 @@ class RenderConfig:
     depth_noise: DepthNoiseConfig = field(default_factory=NoDepthNoise)
     """Noise model of the SENSOR depth (``kind = "none" | "realsense" | "kinect_azure"``);
     ground-truth depth stays exact."""
+    image_formation: ImageFormationConfig = field(default_factory=ImageFormationConfig)
+    """Exposure, gamma, sensor noise and rolling shutter of the colour image (off by
+    default)."""
 
     def __post_init__(self) -> None:
         if self.msaa_samples not in (0, 2, 4, 8, 16):
@@ -413,6 +480,12 @@ class RenderConfig:
                 f"render.exposure_fraction must lie in (0, 1], got {self.exposure_fraction}"
             )
         _check_positive("render", znear_m=self.znear_m, zfar_m=self.zfar_m)
+        if self.image_formation.rolling_shutter and self.motion_blur_subframes > 1:
+            raise ConfigError(
+                "render.image_formation's rolling shutter and render.motion_blur_subframes > 1 "
+                "cannot be combined (each row band is one instantaneous render); set "
+                "motion_blur_subframes = 1 or rolling_shutter_readout_s = 0"
+            )
         if self.zfar_m <= self.znear_m * 10:
             raise ConfigError(
                 f"render.zfar_m ({self.zfar_m}) must exceed 10 x znear_m ({self.znear_m})"
