@@ -11,7 +11,7 @@ camera and inside the later image, and the later depth there is not nearer than 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -86,9 +86,15 @@ class RenderedFrame:
     """(4, 4) camera pose (OpenCV optical frame) in the world [m]; identity for a static camera."""
     T_cam_bodies: F64
     """(B, 4, 4) pose of each rigid body's frame in the camera frame [m], in ``body_names``
-    order: the static world (``inv(T_world_cam)``), the object, the hand (if any)."""
+    order: the static world (``inv(T_world_cam)``), the object, the hand's links (if any), the
+    distractors (if any)."""
     body_names: tuple[str, ...]
     """Names of the bodies, e.g. ``("static", "object", "hand")``."""
+    camera_v_world_mps: F64 = field(default_factory=lambda: np.zeros(3))
+    """(3,) the camera's own velocity (its origin), world frame [m/s]; the object's velocities
+    above are relative to the moving camera."""
+    camera_w_world_radps: F64 = field(default_factory=lambda: np.zeros(3))
+    """(3,) the camera's own angular velocity, world frame [rad/s]."""
 
     def segment_ids(self) -> NDArray[np.uint8]:
         """(H, W) uint8 ground-truth segment id per pixel: :data:`SEGMENT_BACKGROUND`,

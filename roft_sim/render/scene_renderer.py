@@ -57,6 +57,10 @@ class SceneState:
     """(3,) object-origin velocity relative to the camera, camera frame [m/s]."""
     w_radps: F64
     """(3,) object angular velocity relative to the camera, camera frame [rad/s]."""
+    camera_v_world_mps: F64
+    """(3,) the camera's own velocity (its origin), world frame [m/s]."""
+    camera_w_world_radps: F64
+    """(3,) the camera's own angular velocity, world frame [rad/s]."""
 
 
 class SceneRenderer:
@@ -196,6 +200,8 @@ class SceneRenderer:
             T_cam_obj=T_cam_obj,
             v_obj_mps=v_obj,
             w_radps=w,
+            camera_v_world_mps=cam.v_world_mps[0],
+            camera_w_world_radps=cam.w_world_radps[0],
         )
 
     def _pose_scene(self, state: SceneState) -> None:
@@ -276,6 +282,8 @@ class SceneRenderer:
             w_radps=state.w_radps,
             v_o_mps=v_o_from_v_obj(state.v_obj_mps, state.w_radps, state.T_cam_obj[:3, 3]),
             T_world_cam=state.T_world_cam,
+            camera_v_world_mps=state.camera_v_world_mps,
+            camera_w_world_radps=state.camera_w_world_radps,
             T_cam_bodies=T_cam_bodies,
             body_names=self._body_names,
         )

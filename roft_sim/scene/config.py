@@ -9,12 +9,15 @@ These dataclasses import nothing from MuJoCo, so scenario files load without a G
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Literal
 
 import numpy as np
 
 from roft_sim.errors import ConfigError
 from roft_sim.sensors.depth_noise import DepthNoiseConfig, NoDepthNoise
+from roft_sim.trajectories.bvh import BvhUnit
+from roft_sim.trajectories.placement import GraspOffset
 
 __all__ = [
     "TEXTURE_STYLES",
@@ -29,6 +32,7 @@ __all__ = [
     "ImageFormationConfig",
     "RenderConfig",
     "CameraSwayConfig",
+    "CameraFileMotionConfig",
     "CameraMotionConfig",
 ]
 
@@ -522,5 +526,64 @@ class CameraSwayConfig:
         _check_positive("camera.motion", frequency_hz=self.frequency_hz)
 
 
-CameraMotionConfig = CameraSwayConfig
-"""Camera ego-motion models (a tagged union by ``kind`` once there are more)."""
+@dataclass(frozen=True, slots=True, kw_only=True)
+class CameraFileMotionConfig:
+    """Captured camera motion replayed from a file (``kind = "file"``): a TUM trajectory, a BVH
+    joint (e.g. a head) or a trajectory CSV, cleaned like a captured object trajectory
+    (drift removal, low-pass, window, speed) and anchored so that the camera starts at its rest
+    pose: ``T_world_cam(t) = inv(T_ref_body(0) @ T_body_cam) @ T_ref_body(t) @ T_body_cam``,
+    with ``t = 0`` the first kept sample. Velocities are exact derivatives of the spline
+    (:mod:`roft_sim.scene.camera_motion`)."""
+
+    kind: Literal["file"] = "file"
+    """Tells camera motion models apart."""
+    path: Path
+    """The file (relative paths resolve against the scenario file's folder)."""
+    format: Literal["tum", "bvh", "csv"]
+    """``tum``, ``bvh`` or ``csv`` (the trajectory readers of :mod:`roft_sim.trajectories`)."""
+    joint: str | None = None
+    """BVH only, required: the joint carrying the camera, e.g. ``CC_Base_Head``."""
+    relative_to: str | None = None
+    """BVH only: follow ``joint`` relative to this joint."""
+    bvh_unit: BvhUnit = "auto"
+    """BVH only: length unit of the file."""
+    lowpass_hz: float | None = None
+    """Zero-phase low-pass cut-off [Hz] for position and rotation; None = no filtering."""
+    window_s: tuple[float, float] | None = None
+    """Keep only ``[start, end]`` [s] of the file; the motion then starts at 0."""
+    speed_scale: float = 1.0
+    """Play faster (> 1) or slower (< 1)."""
+    remove_drift_window_s: float | None = None
+    """Subtract a centred moving average of the position over this window [s] (keeps the camera
+    near its rest pose on walking captures); None = keep."""
+    camera_in_body: GraspOffset = field(default_factory=GraspOffset)
+    """Placement of the camera on the tracked body: the pose ``T_body_cam`` of the camera's
+    OpenCV optical frame in the body frame (default: the identity)."""
+
+    def __post_init__(self) -> None:
+        _check_choice("camera.motion.format", self.format, ("tum", "bvh", "csv"))
+        if self.format == "bvh" and not self.joint:
+            raise ConfigError("camera.motion format 'bvh' needs joint = e.g. 'CC_Base_Head'")
+        if self.format != "bvh" and (self.joint or self.relative_to or self.bvh_unit != "auto"):
+            raise ConfigError(
+                f"camera.motion: joint, relative_to and bvh_unit apply to format 'bvh' only, "
+                f"not {self.format!r}; remove them"
+            )
+        for name, value in (
+            ("lowpass_hz", self.lowpass_hz),
+            ("remove_drift_window_s", self.remove_drift_window_s),
+        ):
+            if value is not None:
+                _check_positive("camera.motion", **{name: value})
+        _check_positive("camera.motion", speed_scale=self.speed_scale)
+        if self.window_s is not None:
+            start, end = self.window_s
+            if not (np.isfinite([start, end]).all() and 0 <= start < end):
+                raise ConfigError(
+                    f"camera.motion.window_s must be [start, end] with 0 <= start < end [s], "
+                    f"got {self.window_s!r}"
+                )
+
+
+CameraMotionConfig = CameraSwayConfig | CameraFileMotionConfig
+"""Camera ego-motion models, told apart by ``kind`` (``sway`` or ``file``)."""
