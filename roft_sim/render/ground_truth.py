@@ -95,6 +95,15 @@ class RenderedFrame:
     above are relative to the moving camera."""
     camera_w_world_radps: F64 = field(default_factory=lambda: np.zeros(3))
     """(3,) the camera's own angular velocity, world frame [rad/s]."""
+    distractor_names: tuple[str, ...] = ()
+    """Object name of each distractor ``distractor<i>`` (registry name or mesh path)."""
+
+    @property
+    def T_cam_distractors(self) -> F64:
+        """(D, 4, 4) pose of each distractor in the camera frame [m] (``distractor<i>``
+        order); its visible mask is ``body_index == body_names.index(f"distractor{i}")``."""
+        rows = [i for i, n in enumerate(self.body_names) if n.startswith("distractor")]
+        return self.T_cam_bodies[rows].reshape(len(rows), 4, 4)
 
     def segment_ids(self) -> NDArray[np.uint8]:
         """(H, W) uint8 ground-truth segment id per pixel: :data:`SEGMENT_BACKGROUND`,

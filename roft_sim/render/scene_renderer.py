@@ -20,6 +20,7 @@ from roft_sim.errors import ConfigError
 from roft_sim.geometry import (
     CameraIntrinsics,
     invert_transform,
+    matrix_from_rotvec,
     quat_from_matrix,
     relative_motion,
     v_o_from_v_obj,
@@ -28,8 +29,9 @@ from roft_sim.render.ground_truth import RenderedFrame
 from roft_sim.render.image_formation import apply_image_formation, rolling_shutter_band_times
 from roft_sim.render.offscreen import OffscreenRenderer
 from roft_sim.scene.articulated_hand import FingerMotion, HandGrasp, synthesise_grasp
-from roft_sim.scene.builder import BuiltScene, build_scene
+from roft_sim.scene.builder import BuiltScene, DistractorMesh, build_scene
 from roft_sim.scene.camera_motion import camera_poses
+from roft_sim.scene.config import DistractorConfig
 from roft_sim.sensors.depth_noise import apply_depth_noise
 
 if TYPE_CHECKING:
@@ -61,6 +63,61 @@ class SceneState:
     """(3,) the camera's own velocity (its origin), world frame [m/s]."""
     camera_w_world_radps: F64
     """(3,) the camera's own angular velocity, world frame [rad/s]."""
+
+
+@dataclass(frozen=True, slots=True)
+class _Distractor:
+    """A loaded distractor: its mesh and its pose over time (resting or moving)."""
+
+    name: str
+    mesh: Any
+    T_world_rest: F64 | None
+    """(4, 4) resting pose on the table [m], or None when it moves."""
+    trajectory: Any
+    """Its trajectory (``sample(t_s)`` -> ``T_ref_obj`` in the world), or None at rest."""
+
+    @classmethod
+    def load(
+        cls,
+        config: DistractorConfig,
+        index: int,
+        scenario: Scenario,
+        assets_dir: Any,
+        cache_dir: Any,
+    ) -> _Distractor:
+        from roft_sim.assets import load_object
+
+        mesh = load_object(config.name, assets_dir=assets_dir, cache_dir=cache_dir).mesh
+        vertices = np.asarray(mesh.vertices_m, dtype=np.float64)
+        if config.trajectory is not None:
+            from roft_sim.trajectories import build_trajectory
+
+            radius = float(np.linalg.norm(vertices, axis=1).max())
+            trajectory = build_trajectory(
+                config.trajectory, scenario.intrinsics, object_radius_m=radius
+            )
+            return cls(name=config.name, mesh=mesh, T_world_rest=None, trajectory=trajectory)
+        # Object +z up (world -y, the OpenCV world's y points down), then the yaw about y.
+        R_up = matrix_from_rotvec(np.array([np.pi / 2, 0.0, 0.0]))
+        R = matrix_from_rotvec(np.array([0.0, config.yaw_rad, 0.0])) @ R_up
+        lowest = float((vertices @ R.T)[:, 1].max())  # largest y = lowest point
+        T = np.eye(4)
+        T[:3, :3] = R
+        T[:3, 3] = [
+            config.position_m[0],
+            scenario.scene.table.height_m - lowest,
+            config.position_m[1],
+        ]
+        return cls(name=config.name, mesh=mesh, T_world_rest=T, trajectory=None)
+
+    def T_world_d(self, t_s: float) -> F64:
+        """(4, 4) pose in the world at scenario time ``t_s`` [s] (clamped onto its trajectory)."""
+        if self.trajectory is None:
+            assert self.T_world_rest is not None
+            return self.T_world_rest
+        traj = self.trajectory
+        t = float(np.clip(float(traj.start_s) + t_s, traj.start_s, traj.end_s))
+        return np.asarray(traj.sample(np.array([t])).T_ref_obj[0], dtype=np.float64)
 
 
 class SceneRenderer:
@@ -117,12 +174,18 @@ class SceneRenderer:
                 f"{float(trajectory.end_s):.3f} s; shorten duration_s/frames or lengthen the "
                 "trajectory"
             )
+        self.distractors = tuple(
+            _Distractor.load(d, i, scenario, assets_dir, cache_dir)
+            for i, d in enumerate(scenario.scene.distractors)
+        )
+        """The distractor objects (meshes and motions), in ``distractor<i>`` order."""
         self.built: BuiltScene = build_scene(
             intrinsics=intrinsics,
             object_mesh=mesh,
             scene=scenario.scene,
             render=scenario.render,
             rng=scenario.rng("scene_textures"),
+            distractors=tuple(DistractorMesh(name=d.name, mesh=d.mesh) for d in self.distractors),
         )
         self._data = mujoco.MjData(self.built.model)
         self._segmentation = segmentation
@@ -217,6 +280,10 @@ class SceneRenderer:
         elif b.hand_mocap is not None:  # the proxy's frame is the object's (fixed grasp)
             d.mocap_pos[b.hand_mocap] = state.T_world_obj[:3, 3]
             d.mocap_quat[b.hand_mocap] = quat_from_matrix(state.T_world_obj[:3, :3])
+        for mocap, distractor in zip(b.distractor_mocaps, self.distractors, strict=True):
+            T = distractor.T_world_d(state.t_s)
+            d.mocap_pos[mocap] = T[:3, 3]
+            d.mocap_quat[mocap] = quat_from_matrix(T[:3, :3])
         mujoco.mj_kinematics(b.model, d)
         if self.finger_motion is not None:
             assert b.hand is not None
@@ -285,6 +352,7 @@ class SceneRenderer:
             camera_v_world_mps=state.camera_v_world_mps,
             camera_w_world_radps=state.camera_w_world_radps,
             T_cam_bodies=T_cam_bodies,
+            distractor_names=tuple(d.name for d in self.distractors),
             body_names=self._body_names,
         )
 
@@ -300,6 +368,8 @@ class SceneRenderer:
                 bodies.append(T_cam_world @ self._body_pose_world(body_id))
         elif self.built.hand_mocap is not None:
             bodies.append(state.T_cam_obj)  # proxy frame = object frame
+        for distractor in self.distractors:
+            bodies.append(T_cam_world @ distractor.T_world_d(state.t_s))
         return np.stack(bodies)
 
     def _body_pose_world(self, body_id: int) -> F64:

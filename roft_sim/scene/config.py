@@ -16,6 +16,7 @@ import numpy as np
 
 from roft_sim.errors import ConfigError
 from roft_sim.sensors.depth_noise import DepthNoiseConfig, NoDepthNoise
+from roft_sim.trajectories.build import TrajectoryConfig
 from roft_sim.trajectories.bvh import BvhUnit
 from roft_sim.trajectories.placement import GraspOffset
 
@@ -28,6 +29,7 @@ __all__ = [
     "FingerConfig",
     "HandMotionConfig",
     "HandConfig",
+    "DistractorConfig",
     "SceneConfig",
     "ImageFormationConfig",
     "RenderConfig",
@@ -360,6 +362,33 @@ class HandConfig:
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
+class DistractorConfig:
+    """A distractor object (``[[scene.distractors]]``): another mesh in the scene with its own
+    ground truth (pose, segment id), either resting on the table or moved by its own
+    trajectory."""
+
+    name: str
+    """Registry name or mesh file of the object (``roft_sim.assets.load_object``), e.g.
+    ``005_tomato_soup_can``."""
+    position_m: tuple[float, float] = (0.15, 0.7)
+    """Resting: where it stands on the table, world (x, z) [m]."""
+    yaw_rad: float = 0.0
+    """Resting: rotation about the vertical (world y) [rad]; the object's +z points up."""
+    trajectory: TrajectoryConfig | None = None
+    """Its own motion (a ``[trajectory]``-like table, placed in view like the object's); absent =
+    resting on the table (needs ``[scene.table] enabled``)."""
+
+    def __post_init__(self) -> None:
+        if not self.name:
+            raise ConfigError("scene.distractors: name must be a registry name or mesh path")
+        if not np.isfinite([*self.position_m, self.yaw_rad]).all():
+            raise ConfigError(
+                f"scene.distractors[{self.name!r}]: position_m and yaw_rad must be finite, got "
+                f"{self.position_m}, {self.yaw_rad}"
+            )
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
 class SceneConfig:
     """Everything in the scene besides the object and the camera."""
 
@@ -374,8 +403,17 @@ class SceneConfig:
     no diffuse light)."""
     hand: HandConfig = field(default_factory=HandConfig)
     """Optional hand occluder."""
+    distractors: tuple[DistractorConfig, ...] = ()
+    """Distractor objects (clutter), each with its own ground truth (at most 32)."""
 
     def __post_init__(self) -> None:
+        if len(self.distractors) > 32:
+            raise ConfigError(f"at most 32 distractors are supported, got {len(self.distractors)}")
+        if any(d.trajectory is None for d in self.distractors) and not self.table.enabled:
+            raise ConfigError(
+                "a distractor without a trajectory rests on the table, but [scene.table] is "
+                "disabled; enable the table or give the distractor a trajectory"
+            )
         if len(self.lights) > 8:
             raise ConfigError(f"at most 8 lights are supported, got {len(self.lights)}")
         _check_unit_interval("scene", ambient=self.ambient)
