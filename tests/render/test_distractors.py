@@ -29,7 +29,8 @@ def _scene(*distractors, table=True):
 def test_resting_and_moving_distractors_have_their_own_ground_truth():
     resting = DistractorConfig(name="009_gelatin_box", position_m=(-0.12, 0.6), yaw_rad=0.4)
     moving = DistractorConfig(
-        name="005_tomato_soup_can", trajectory=SyntheticMotionConfig(seed=4, working_distance_m=(0.7, 0.9))
+        name="005_tomato_soup_can",
+        trajectory=SyntheticMotionConfig(seed=4, working_distance_m=(0.7, 0.9)),
     )
     scenario = small_scenario(scene=_scene(resting, moving))
     with open_renderer(scenario, trajectory=SinusoidalTrajectory(p0_m=(0.1, -0.05, 0.45))) as r:
