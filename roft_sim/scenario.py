@@ -50,8 +50,8 @@ class CameraConfig:
     fps: int = 30
     """Frames per second (an integer; frame k is at ``k / fps`` s)."""
     motion: CameraMotionConfig | None = None
-    """Camera ego-motion (``[camera.motion]``, ``kind = "sway"``); absent = static camera at the
-    world origin."""
+    """Camera ego-motion (``[camera.motion]``, ``kind = "sway" | "file"``); absent = static
+    camera at the world origin."""
 
     def __post_init__(self) -> None:
         if self.fps <= 0:
@@ -200,7 +200,7 @@ def load_scenario(path: str | Path) -> Scenario:
     """Reads a scenario TOML file strictly.
 
     Relative paths in it (``[object] mesh``, ``[trajectory] path``) are resolved here, against
-    the file's folder, and stored absolute.
+    the file's folder, and stored absolute (``[camera.motion] path`` too).
 
     Raises:
         ConfigError: missing file, invalid TOML, unknown key, missing key or bad value; the
@@ -221,4 +221,9 @@ def load_scenario(path: str | Path) -> Scenario:
     traj_path = getattr(trajectory, "path", None)
     if isinstance(traj_path, Path) and not traj_path.is_absolute():
         trajectory = dataclasses.replace(trajectory, path=base_dir / traj_path)
-    return dataclasses.replace(scenario, object=obj, trajectory=trajectory)
+    camera = scenario.camera
+    motion_path = getattr(camera.motion, "path", None)
+    if isinstance(motion_path, Path) and not motion_path.is_absolute():
+        motion = dataclasses.replace(camera.motion, path=base_dir / motion_path)  # type: ignore[type-var]
+        camera = dataclasses.replace(camera, motion=motion)
+    return dataclasses.replace(scenario, object=obj, trajectory=trajectory, camera=camera)

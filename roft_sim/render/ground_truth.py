@@ -11,7 +11,7 @@ camera and inside the later image, and the later depth there is not nearer than 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -23,7 +23,32 @@ from roft_sim.records import FlowField
 F64 = NDArray[np.float64]
 F32 = NDArray[np.float32]
 
-__all__ = ["RenderedFrame", "ground_truth_flow", "body_motions"]
+__all__ = [
+    "RenderedFrame",
+    "ground_truth_flow",
+    "body_motions",
+    "SEGMENT_BACKGROUND",
+    "SEGMENT_OBJECT",
+    "SEGMENT_HAND",
+    "SEGMENT_DISTRACTOR",
+    "segment_of_body",
+]
+
+SEGMENT_BACKGROUND, SEGMENT_OBJECT, SEGMENT_HAND, SEGMENT_DISTRACTOR = 0, 1, 2, 3
+"""Ground-truth segment ids (:meth:`RenderedFrame.segment_ids`): background (static world, or
+nothing drawn), the tracked object, the hand (every link), any distractor object."""
+
+
+def segment_of_body(body_name: str) -> int:
+    """Segment id of a rigid body by its name (``static``, ``object``, ``hand...``,
+    ``distractor...``)."""
+    if body_name == "object":
+        return SEGMENT_OBJECT
+    if body_name.startswith("hand"):
+        return SEGMENT_HAND
+    if body_name.startswith("distractor"):
+        return SEGMENT_DISTRACTOR
+    return SEGMENT_BACKGROUND
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -61,9 +86,35 @@ class RenderedFrame:
     """(4, 4) camera pose (OpenCV optical frame) in the world [m]; identity for a static camera."""
     T_cam_bodies: F64
     """(B, 4, 4) pose of each rigid body's frame in the camera frame [m], in ``body_names``
-    order: the static world (``inv(T_world_cam)``), the object, the hand (if any)."""
+    order: the static world (``inv(T_world_cam)``), the object, the hand's links (if any), the
+    distractors (if any)."""
     body_names: tuple[str, ...]
     """Names of the bodies, e.g. ``("static", "object", "hand")``."""
+    camera_v_world_mps: F64 = field(default_factory=lambda: np.zeros(3))
+    """(3,) the camera's own velocity (its origin), world frame [m/s]; the object's velocities
+    above are relative to the moving camera."""
+    camera_w_world_radps: F64 = field(default_factory=lambda: np.zeros(3))
+    """(3,) the camera's own angular velocity, world frame [rad/s]."""
+    distractor_names: tuple[str, ...] = ()
+    """Object name of each distractor ``distractor<i>`` (registry name or mesh path)."""
+
+    @property
+    def T_cam_distractors(self) -> F64:
+        """(D, 4, 4) pose of each distractor in the camera frame [m] (``distractor<i>``
+        order); its visible mask is ``body_index == body_names.index(f"distractor{i}")``."""
+        rows = [i for i, n in enumerate(self.body_names) if n.startswith("distractor")]
+        return self.T_cam_bodies[rows].reshape(len(rows), 4, 4)
+
+    def segment_ids(self) -> NDArray[np.uint8]:
+        """(H, W) uint8 ground-truth segment id per pixel: :data:`SEGMENT_BACKGROUND`,
+        :data:`SEGMENT_OBJECT`, :data:`SEGMENT_HAND` or :data:`SEGMENT_DISTRACTOR` (exact
+        occlusion: each pixel shows the nearest surface)."""
+        if self.body_index is None:
+            raise ValueError("segment ids need the segmentation; render with segmentation=True")
+        lut = np.array(
+            [segment_of_body(n) for n in self.body_names] + [SEGMENT_BACKGROUND], dtype=np.uint8
+        )
+        return lut[self.body_index]  # index -1 (nothing) -> the last entry, background
 
     @property
     def shape(self) -> tuple[int, int]:

@@ -20,14 +20,18 @@ from roft_sim.errors import ConfigError
 from roft_sim.geometry import (
     CameraIntrinsics,
     invert_transform,
+    matrix_from_rotvec,
     quat_from_matrix,
     relative_motion,
     v_o_from_v_obj,
 )
 from roft_sim.render.ground_truth import RenderedFrame
+from roft_sim.render.image_formation import apply_image_formation, rolling_shutter_band_times
 from roft_sim.render.offscreen import OffscreenRenderer
-from roft_sim.scene.builder import BODY_NAMES, BuiltScene, build_scene
+from roft_sim.scene.articulated_hand import FingerMotion, HandGrasp, synthesise_grasp
+from roft_sim.scene.builder import BuiltScene, DistractorMesh, build_scene
 from roft_sim.scene.camera_motion import camera_poses
+from roft_sim.scene.config import DistractorConfig
 from roft_sim.sensors.depth_noise import apply_depth_noise
 
 if TYPE_CHECKING:
@@ -55,6 +59,65 @@ class SceneState:
     """(3,) object-origin velocity relative to the camera, camera frame [m/s]."""
     w_radps: F64
     """(3,) object angular velocity relative to the camera, camera frame [rad/s]."""
+    camera_v_world_mps: F64
+    """(3,) the camera's own velocity (its origin), world frame [m/s]."""
+    camera_w_world_radps: F64
+    """(3,) the camera's own angular velocity, world frame [rad/s]."""
+
+
+@dataclass(frozen=True, slots=True)
+class _Distractor:
+    """A loaded distractor: its mesh and its pose over time (resting or moving)."""
+
+    name: str
+    mesh: Any
+    T_world_rest: F64 | None
+    """(4, 4) resting pose on the table [m], or None when it moves."""
+    trajectory: Any
+    """Its trajectory (``sample(t_s)`` -> ``T_ref_obj`` in the world), or None at rest."""
+
+    @classmethod
+    def load(
+        cls,
+        config: DistractorConfig,
+        index: int,
+        scenario: Scenario,
+        assets_dir: Any,
+        cache_dir: Any,
+    ) -> _Distractor:
+        from roft_sim.assets import load_object
+
+        mesh = load_object(config.name, assets_dir=assets_dir, cache_dir=cache_dir).mesh
+        vertices = np.asarray(mesh.vertices_m, dtype=np.float64)
+        if config.trajectory is not None:
+            from roft_sim.trajectories import build_trajectory
+
+            radius = float(np.linalg.norm(vertices, axis=1).max())
+            trajectory = build_trajectory(
+                config.trajectory, scenario.intrinsics, object_radius_m=radius
+            )
+            return cls(name=config.name, mesh=mesh, T_world_rest=None, trajectory=trajectory)
+        # Object +z up (world -y, the OpenCV world's y points down), then the yaw about y.
+        R_up = matrix_from_rotvec(np.array([np.pi / 2, 0.0, 0.0]))
+        R = matrix_from_rotvec(np.array([0.0, config.yaw_rad, 0.0])) @ R_up
+        lowest = float((vertices @ R.T)[:, 1].max())  # largest y = lowest point
+        T = np.eye(4)
+        T[:3, :3] = R
+        T[:3, 3] = [
+            config.position_m[0],
+            scenario.scene.table.height_m - lowest,
+            config.position_m[1],
+        ]
+        return cls(name=config.name, mesh=mesh, T_world_rest=T, trajectory=None)
+
+    def T_world_d(self, t_s: float) -> F64:
+        """(4, 4) pose in the world at scenario time ``t_s`` [s] (clamped onto its trajectory)."""
+        if self.trajectory is None:
+            assert self.T_world_rest is not None
+            return self.T_world_rest
+        traj = self.trajectory
+        t = float(np.clip(float(traj.start_s) + t_s, traj.start_s, traj.end_s))
+        return np.asarray(traj.sample(np.array([t])).T_ref_obj[0], dtype=np.float64)
 
 
 class SceneRenderer:
@@ -111,6 +174,11 @@ class SceneRenderer:
                 f"{float(trajectory.end_s):.3f} s; shorten duration_s/frames or lengthen the "
                 "trajectory"
             )
+        self.distractors = tuple(
+            _Distractor.load(d, i, scenario, assets_dir, cache_dir)
+            for i, d in enumerate(scenario.scene.distractors)
+        )
+        """The distractor objects (meshes and motions), in ``distractor<i>`` order."""
         self.built: BuiltScene = build_scene(
             intrinsics=intrinsics,
             object_mesh=mesh,
@@ -118,10 +186,17 @@ class SceneRenderer:
             render=scenario.render,
             rng=scenario.rng("scene_textures"),
             texture_cache_dir=cache_dir,
+            distractors=tuple(DistractorMesh(name=d.name, mesh=d.mesh) for d in self.distractors),
         )
         self._data = mujoco.MjData(self.built.model)
         self._segmentation = segmentation
-        self._body_names = BODY_NAMES if self.built.hand_mocap is not None else BODY_NAMES[:2]
+        self._body_names = self.built.body_names
+        self.grasp: HandGrasp | None = None
+        """The articulated hand's synthesised grasp (None without one)."""
+        self.finger_motion: FingerMotion | None = None
+        """The articulated hand's finger motion (None without one)."""
+        if self.built.hand is not None:
+            self.grasp, self.finger_motion = self._plan_hand(scenario)
         self._renderer = OffscreenRenderer(
             self.built.model, intrinsics.width_px, intrinsics.height_px
         )
@@ -148,6 +223,25 @@ class SceneRenderer:
         return self._body_names
 
     # -- kinematics ---------------------------------------------------------------------------
+    def _plan_hand(self, scenario: Scenario) -> tuple[HandGrasp, FingerMotion]:
+        """Synthesises the articulated hand's grasp and draws its finger motion, both from the
+        scenario's ``hand`` stream (so per object and trajectory seed)."""
+        b = self.built
+        assert b.hand is not None
+        rng = scenario.rng("hand")
+        grasp = synthesise_grasp(
+            b.model,
+            self._data,
+            b.hand,
+            b.object_geom_id,
+            b.object_mocap,
+            b.object_half_extents_m,
+            scenario.scene.hand,
+            rng,
+        )
+        duration_s = scenario.n_frames / scenario.fps
+        return grasp, FingerMotion(scenario.scene.hand.motion, grasp, duration_s, rng)
+
     def state_at(self, t_s: float) -> SceneState:
         """Exact poses and velocities at scenario time ``t_s`` [s] (``0 <= t_s`` and within the
         trajectory; times just outside are clamped onto it)."""
@@ -170,6 +264,8 @@ class SceneRenderer:
             T_cam_obj=T_cam_obj,
             v_obj_mps=v_obj,
             w_radps=w,
+            camera_v_world_mps=cam.v_world_mps[0],
+            camera_w_world_radps=cam.w_world_radps[0],
         )
 
     def _pose_scene(self, state: SceneState) -> None:
@@ -178,10 +274,21 @@ class SceneRenderer:
         d.mocap_quat[b.camera_mocap] = quat_from_matrix(state.T_world_cam[:3, :3])
         d.mocap_pos[b.object_mocap] = state.T_world_obj[:3, 3]
         d.mocap_quat[b.object_mocap] = quat_from_matrix(state.T_world_obj[:3, :3])
-        if b.hand_mocap is not None:  # the hand's frame is the object's (fixed grasp)
+        if self.grasp is not None:
+            T_world_hand = state.T_world_obj @ self.grasp.T_obj_hand
+            d.mocap_pos[b.hand_mocap] = T_world_hand[:3, 3]
+            d.mocap_quat[b.hand_mocap] = quat_from_matrix(T_world_hand[:3, :3])
+        elif b.hand_mocap is not None:  # the proxy's frame is the object's (fixed grasp)
             d.mocap_pos[b.hand_mocap] = state.T_world_obj[:3, 3]
             d.mocap_quat[b.hand_mocap] = quat_from_matrix(state.T_world_obj[:3, :3])
+        for mocap, distractor in zip(b.distractor_mocaps, self.distractors, strict=True):
+            T = distractor.T_world_d(state.t_s)
+            d.mocap_pos[mocap] = T[:3, 3]
+            d.mocap_quat[mocap] = quat_from_matrix(T[:3, :3])
         mujoco.mj_kinematics(b.model, d)
+        if self.finger_motion is not None:
+            assert b.hand is not None
+            self.finger_motion.pose(b.model, d, b.hand, b.object_geom_id, state.t_s)
         mujoco.mj_camlight(b.model, d)
         assert self._renderer is not None
         self._renderer.update(d, b.camera_id)
@@ -197,13 +304,20 @@ class SceneRenderer:
         t_s = self.scenario.frame_time_s(k)
         state = self.state_at(t_s)
         self._pose_scene(state)
+        T_cam_bodies = self._body_poses_cam(state)
         blur = opts.motion_blur_subframes > 1
+        rolling = opts.image_formation.rolling_shutter
         out = self._renderer.render(
-            rgb=not blur, depth=True, segmentation=self._segmentation, shadows=opts.shadows
+            rgb=not (blur or rolling),
+            depth=True,
+            segmentation=self._segmentation,
+            shadows=opts.shadows,
         )
         rgb = out.rgb
         if blur:
             rgb = self._blurred_rgb(t_s)
+        elif rolling:
+            rgb = self._rolling_shutter_rgb(t_s)
         assert rgb is not None and out.depth_m is not None
         depth = out.depth_m
         sensor_depth = apply_depth_noise(
@@ -213,16 +327,15 @@ class SceneRenderer:
             fx_px=self.intrinsics.fx_px,
             rgb=rgb,
         )
+        rgb = apply_image_formation(
+            rgb, opts.image_formation, self.scenario.rng("image_formation", k)
+        )
         mask = seg = body = None
         if out.geom_id is not None:
             seg = out.geom_id
             mask = seg == self.built.object_geom_id
             lut = np.append(self.built.geom_body, np.int8(-1))  # index -1 -> -1
             body = lut[seg]
-        T_cam_world = invert_transform(state.T_world_cam)
-        bodies = [T_cam_world, state.T_cam_obj]
-        if self.built.hand_mocap is not None:
-            bodies.append(state.T_cam_obj)  # hand frame = object frame
         return RenderedFrame(
             k=k,
             t_s=t_s,
@@ -237,9 +350,56 @@ class SceneRenderer:
             w_radps=state.w_radps,
             v_o_mps=v_o_from_v_obj(state.v_obj_mps, state.w_radps, state.T_cam_obj[:3, 3]),
             T_world_cam=state.T_world_cam,
-            T_cam_bodies=np.stack(bodies),
+            camera_v_world_mps=state.camera_v_world_mps,
+            camera_w_world_radps=state.camera_w_world_radps,
+            T_cam_bodies=T_cam_bodies,
+            distractor_names=tuple(d.name for d in self.distractors),
             body_names=self._body_names,
         )
+
+    def _body_poses_cam(self, state: SceneState) -> F64:
+        """(B, 4, 4) pose of every rigid body of :attr:`body_names` in the camera frame [m]: the
+        static world and the object exactly from the trajectories, the proxy hand as the object,
+        the articulated hand's links where MuJoCo's kinematics put them (call after
+        :meth:`_pose_scene`)."""
+        T_cam_world = invert_transform(state.T_world_cam)
+        bodies = [T_cam_world, state.T_cam_obj]
+        if self.built.hand is not None:
+            for body_id in self.built.hand.body_ids:
+                bodies.append(T_cam_world @ self._body_pose_world(body_id))
+        elif self.built.hand_mocap is not None:
+            bodies.append(state.T_cam_obj)  # proxy frame = object frame
+        for distractor in self.distractors:
+            bodies.append(T_cam_world @ distractor.T_world_d(state.t_s))
+        return np.stack(bodies)
+
+    def _body_pose_world(self, body_id: int) -> F64:
+        """(4, 4) pose of MuJoCo body ``body_id`` in the world after the last kinematics [m]."""
+        T = np.eye(4)
+        T[:3, :3] = self._data.xmat[body_id].reshape(3, 3)
+        T[:3, 3] = self._data.xpos[body_id]
+        return T
+
+    def _rolling_shutter_rgb(self, t_s: float) -> NDArray[np.uint8]:
+        """The rolling-shutter image: each band of rows rendered at its own exposure time
+        (:func:`~roft_sim.render.image_formation.rolling_shutter_band_times`; times before 0 are
+        clamped to 0 like the motion blur's)."""
+        config = self.scenario.render.image_formation
+        height = self.intrinsics.height_px
+        times, band_of_row = rolling_shutter_band_times(
+            height, t_s, config.rolling_shutter_readout_s, config.rolling_shutter_bands
+        )
+        out = np.empty(self.intrinsics.shape + (3,), dtype=np.uint8)
+        assert self._renderer is not None
+        for band, t_band in enumerate(times):
+            self._pose_scene(self.state_at(max(0.0, float(t_band))))
+            sub = self._renderer.render(
+                rgb=True, depth=False, shadows=self.scenario.render.shadows
+            ).rgb
+            assert sub is not None
+            rows = band_of_row == band
+            out[rows] = sub[rows]
+        return out
 
     def _blurred_rgb(self, t_s: float) -> NDArray[np.uint8]:
         """Mean of ``n`` renders at sub-frame times spread evenly over the exposure, centred on

@@ -9,7 +9,10 @@ The scene (world frame = OpenCV optical frame of the camera at rest, see
   ``principal_pixel`` (:func:`roft_sim.render.camera.mujoco_camera_params`);
 - ``object``: a mocap body with the textured object mesh (per-vertex texture coordinates and a
   texture image passed from memory);
-- ``hand`` (optional): a mocap body with the hand's capsules, in the object frame;
+- ``hand`` (optional): the proxy, a mocap body with capsules in the object frame, or the
+  articulated hand (:mod:`roft_sim.scene.articulated_hand`), a mocap body with the palm and a
+  chain of three jointed segments per digit;
+- ``distractor0`` ... (optional): mocap bodies with further object meshes;
 - the table top and the background wall: textured quads fixed in the world;
 - lights, and MuJoCo's headlight reduced to ambient light.
 
@@ -35,7 +38,8 @@ from roft_sim.assets.texture_cache import cached_texture
 from roft_sim.errors import ConfigError
 from roft_sim.geometry import CameraIntrinsics
 from roft_sim.render.camera import QUAT_CV_MJ, mujoco_camera_params
-from roft_sim.scene.config import RenderConfig, SceneConfig
+from roft_sim.scene.articulated_hand import HandModel, add_articulated_hand
+from roft_sim.scene.config import HandConfig, RenderConfig, SceneConfig
 from roft_sim.scene.hand import hand_capsules
 from roft_sim.scene.textures import procedural_texture
 
@@ -50,14 +54,17 @@ __all__ = [
     "HAND_BODY",
     "MeshLike",
     "BuiltScene",
+    "DistractorMesh",
     "build_scene",
     "mujoco_texcoords_from_obj",
 ]
 
 STATIC_BODY, OBJECT_BODY, HAND_BODY = 0, 1, 2
-"""Indices of the rigid bodies of the scene, as used by :attr:`BuiltScene.geom_body`."""
+"""Indices of the first rigid bodies of the scene, as used by :attr:`BuiltScene.geom_body`
+(``HAND_BODY`` is the proxy hand, or the articulated hand's palm)."""
 BODY_NAMES = ("static", "object", "hand")
-"""Body names by index: the static world (table, wall), the object, the hand occluder."""
+"""Names of the first bodies: the static world (table, wall), the object, the hand (its palm for
+the articulated hand, whose segments and the distractors follow: :attr:`BuiltScene.body_names`)."""
 
 
 class MeshLike(Protocol):
@@ -86,9 +93,20 @@ class BuiltScene:
     object_geom_id: int
     """Geom id of the object mesh."""
     geom_body: NDArray[np.int8]
-    """(ngeom,) body index (:data:`BODY_NAMES`) of each geom, -1 for none."""
+    """(ngeom,) rigid-body index (into :attr:`body_names`) of each geom, -1 for none."""
     object_half_extents_m: F64
     """(3,) half extents of the object's bounding box about its origin [m]."""
+    body_names: tuple[str, ...] = BODY_NAMES[:2]
+    """Names of the rigid bodies of the ground truth, indexed by :attr:`geom_body`: ``static``,
+    ``object``, the hand's links (``hand`` ...), the distractors (``distractor0`` ...)."""
+    body_ids: tuple[int, ...] = (0, 1)
+    """MuJoCo body id of each rigid body of :attr:`body_names` (0 = the world)."""
+    hand: HandModel | None = None
+    """The articulated hand's indices, None for none or the proxy."""
+    distractor_mocaps: tuple[int, ...] = ()
+    """Mocap index of each distractor body."""
+    distractor_geom_ids: tuple[int, ...] = ()
+    """Geom id of each distractor mesh."""
 
 
 def mujoco_texcoords_from_obj(uv: F64) -> F64:
@@ -186,6 +204,18 @@ def _scene_texture(
     )
 
 
+@dataclass(frozen=True, slots=True, kw_only=True)
+class DistractorMesh:
+    """A distractor object to add to the scene: its mesh and its name."""
+
+    name: str
+    """Body name suffix and ground-truth name (``distractor<i>``'s object, e.g. the registry
+    name)."""
+    mesh: MeshLike
+    """Its mesh in its own object frame (textured like the object's when it has ``uv`` and
+    ``texture_rgb``)."""
+
+
 def build_scene(
     *,
     intrinsics: CameraIntrinsics,
@@ -194,9 +224,11 @@ def build_scene(
     render: RenderConfig,
     rng: np.random.Generator,
     object_rgba: tuple[float, float, float, float] = (0.7, 0.7, 0.7, 1.0),
+    distractors: tuple[DistractorMesh, ...] = (),
     texture_cache_dir: Path | None = None,
 ) -> BuiltScene:
-    """Builds and compiles the scene.
+    """Builds and compiles the scene, step by step: visual options, the camera rig, the object,
+    the hand, the wall and the table, the lights, the distractors; then compile and index.
 
     Args:
         intrinsics: the camera (any principal point); sets the offscreen buffer size too.
@@ -206,21 +238,51 @@ def build_scene(
         render: MSAA, clipping distances (the other options act at render time).
         rng: randomness of the procedural table and wall textures.
         object_rgba: colour of an untextured object mesh.
+        distractors: further objects, each on its own mocap body ``distractor<i>``.
         texture_cache_dir: asset cache holding the drawn table and wall textures
             (:func:`roft_sim.assets.texture_cache.cached_texture`); None = draw them.
 
     Raises:
-        ConfigError: the mesh is empty or MuJoCo rejects it (the message says why).
+        ConfigError: a mesh is empty or MuJoCo rejects it (the message says why).
     """
-    vertices = np.asarray(object_mesh.vertices_m, dtype=np.float64)
-    faces = np.asarray(object_mesh.faces, dtype=np.int64)
-    if vertices.ndim != 2 or vertices.shape[1] != 3 or len(vertices) < 4 or len(faces) < 1:
-        raise ConfigError(
-            f"object mesh needs >= 4 vertices (V, 3) and >= 1 face, got {vertices.shape} "
-            f"vertices and {faces.shape} faces"
-        )
+    vertices, faces = _checked_mesh(object_mesh, "object")
     spec = mujoco.MjSpec()
     spec.modelname = "roft_sim_scene"
+    _set_visual_options(spec, intrinsics, scene, render)
+    _add_camera_rig(spec, intrinsics)
+    _add_textured_body(spec, "object", object_mesh, vertices, faces, object_rgba)
+    half_extents = np.maximum(np.abs(vertices.min(axis=0)), np.abs(vertices.max(axis=0)))
+    if scene.hand.enabled:
+        _add_hand(spec, scene.hand, half_extents)
+    _add_wall_and_table(spec, intrinsics, scene, rng, texture_cache_dir)
+    _add_lights(spec, scene)
+    for i, distractor in enumerate(distractors):
+        d_vertices, d_faces = _checked_mesh(distractor.mesh, f"distractor {distractor.name!r}")
+        _add_textured_body(
+            spec, f"distractor{i}", distractor.mesh, d_vertices, d_faces, object_rgba
+        )
+    try:
+        model = spec.compile()
+    except ValueError as e:
+        raise ConfigError(f"MuJoCo could not compile the scene: {e}") from None
+    return _index_scene(model, scene, half_extents, len(distractors))
+
+
+def _checked_mesh(mesh: MeshLike, what: str) -> tuple[F64, I64]:
+    vertices = np.asarray(mesh.vertices_m, dtype=np.float64)
+    faces = np.asarray(mesh.faces, dtype=np.int64)
+    if vertices.ndim != 2 or vertices.shape[1] != 3 or len(vertices) < 4 or len(faces) < 1:
+        raise ConfigError(
+            f"{what} mesh needs >= 4 vertices (V, 3) and >= 1 face, got {vertices.shape} "
+            f"vertices and {faces.shape} faces"
+        )
+    return vertices, faces
+
+
+def _set_visual_options(
+    spec: mujoco.MjSpec, intrinsics: CameraIntrinsics, scene: SceneConfig, render: RenderConfig
+) -> None:
+    """Offscreen buffer, MSAA, shadows, clipping in metres, headlight as ambient light only."""
     spec.stat.extent = 1.0
     spec.stat.center = [0.0, 0.0, 1.0]
     vis = spec.visual
@@ -237,7 +299,9 @@ def build_scene(
     vis.headlight.diffuse = [0.0] * 3
     vis.headlight.specular = [0.0] * 3
 
-    # Camera on its rig; the rig's frame is the OpenCV optical frame.
+
+def _add_camera_rig(spec: mujoco.MjSpec, intrinsics: CameraIntrinsics) -> None:
+    """The camera on its rig; the rig's frame is the OpenCV optical frame."""
     rig = spec.worldbody.add_body(name="camera_rig", mocap=True)
     cam = rig.add_camera(name="camera", quat=list(QUAT_CV_MJ))
     params = mujoco_camera_params(intrinsics)
@@ -246,42 +310,71 @@ def build_scene(
     cam.focal_pixel = list(params.focal_pixel)
     cam.principal_pixel = list(params.principal_pixel)
 
-    # Object.
-    obj = spec.worldbody.add_body(name="object", mocap=True)
-    uv = getattr(object_mesh, "uv", None)
-    texture = getattr(object_mesh, "texture_rgb", None)
+
+def _add_textured_body(
+    spec: mujoco.MjSpec,
+    name: str,
+    mesh: MeshLike,
+    vertices: F64,
+    faces: I64,
+    rgba: tuple[float, float, float, float],
+) -> None:
+    """A mocap body ``name`` with one mesh geom ``name`` (assets ``<name>_tex``, ``_mat``,
+    ``_mesh``)."""
+    body = spec.worldbody.add_body(name=name, mocap=True)
+    uv = getattr(mesh, "uv", None)
+    texture = getattr(mesh, "texture_rgb", None)
     if uv is not None and texture is not None:
-        _add_texture(spec, "object_tex", texture)
-        material = _add_material(spec, "object_mat", "object_tex")
+        _add_texture(spec, f"{name}_tex", texture)
+        material = _add_material(spec, f"{name}_mat", f"{name}_tex")
         texcoords = mujoco_texcoords_from_obj(np.asarray(uv))
     else:
-        material = _add_material(spec, "object_mat", None, rgba=object_rgba)
+        material = _add_material(spec, f"{name}_mat", None, rgba=rgba)
         texcoords = None
-    _add_mesh(spec, "object_mesh", vertices, faces, texcoords)
+    _add_mesh(spec, f"{name}_mesh", vertices, faces, texcoords)
     _visual_geom(
-        obj,
-        name="object",
+        body,
+        name=name,
         type=mujoco.mjtGeom.mjGEOM_MESH,
-        meshname="object_mesh",
+        meshname=f"{name}_mesh",
         material=material,
     )
-    half_extents = np.maximum(np.abs(vertices.min(axis=0)), np.abs(vertices.max(axis=0)))
 
-    # Hand occluder.
-    if scene.hand.enabled:
-        hand = spec.worldbody.add_body(name="hand", mocap=True)
-        rgba = [*scene.hand.skin_rgb, 1.0]
-        for capsule in hand_capsules(scene.hand, half_extents):
-            _visual_geom(
-                hand,
-                name=f"hand_{capsule.name}",
-                type=mujoco.mjtGeom.mjGEOM_CAPSULE,
-                fromto=[*capsule.start_m, *capsule.end_m],
-                size=[capsule.radius_m, 0.0, 0.0],
-                rgba=rgba,
-            )
 
-    # Static world: wall and table.
+def _add_hand(spec: mujoco.MjSpec, config: HandConfig, half_extents_m: F64) -> None:
+    """The proxy (capsules on a mocap body in the object frame) or the articulated hand."""
+    if config.kind == "articulated":
+        material = _add_material(
+            spec,
+            "hand_skin",
+            None,
+            rgba=(*config.skin_rgb, 1.0),
+            specular=config.skin_specular,
+            shininess=0.3,
+        )
+        add_articulated_hand(spec, config, material)
+        return
+    hand = spec.worldbody.add_body(name="hand", mocap=True)
+    rgba = [*config.skin_rgb, 1.0]
+    for capsule in hand_capsules(config, half_extents_m):
+        _visual_geom(
+            hand,
+            name=f"hand_{capsule.name}",
+            type=mujoco.mjtGeom.mjGEOM_CAPSULE,
+            fromto=[*capsule.start_m, *capsule.end_m],
+            size=[capsule.radius_m, 0.0, 0.0],
+            rgba=rgba,
+        )
+
+
+def _add_wall_and_table(
+    spec: mujoco.MjSpec,
+    intrinsics: CameraIntrinsics,
+    scene: SceneConfig,
+    rng: np.random.Generator,
+    texture_cache_dir: Path | None,
+) -> None:
+    """The static world: the background wall (drawn first: it uses ``rng`` first) and the table."""
     wall_z = scene.background.distance_m
     if scene.background.enabled:
         margin = 1.5
@@ -313,6 +406,8 @@ def build_scene(
         image = _scene_texture(t.style, t.texture_px, rng, texture_cache_dir)
         _quad(spec, "table", corners, texcoords, image)
 
+
+def _add_lights(spec: mujoco.MjSpec, scene: SceneConfig) -> None:
     for i, light in enumerate(scene.lights):
         l = spec.worldbody.add_light(name=f"light{i}")
         l.type = (
@@ -331,21 +426,40 @@ def build_scene(
             l.cutoff = 60.0
             l.exponent = 1.0
 
-    try:
-        model = spec.compile()
-    except ValueError as e:
-        raise ConfigError(f"MuJoCo could not compile the scene: {e}") from None
 
-    geom_body = np.full(model.ngeom, -1, dtype=np.int8)
-    for gid in range(model.ngeom):
-        body_name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, model.geom_bodyid[gid])
-        geom_body[gid] = {"world": STATIC_BODY, "object": OBJECT_BODY, "hand": HAND_BODY}.get(
-            body_name or "world", -1
-        )
+def _index_scene(
+    model: mujoco.MjModel, scene: SceneConfig, half_extents_m: F64, n_distractors: int
+) -> BuiltScene:
+    """The rigid bodies of the ground truth and the map from geoms to them.
+
+    Bodies, in order: ``static`` (world), ``object``, then the hand (``hand`` for the proxy; for
+    the articulated hand the palm ``hand`` and every segment ``hand_<digit>_<i>``), then
+    ``distractor0`` ...
+    """
 
     def mocap(name: str) -> int:
         return int(model.body_mocapid[model.body(name).id])
 
+    hand_model = None
+    mj_bodies = [0, model.body("object").id]
+    names = list(BODY_NAMES[:2])
+    if scene.hand.enabled:
+        if scene.hand.kind == "articulated":
+            hand_model = HandModel.from_model(model, scene.hand)
+            mj_bodies.extend(hand_model.body_ids)
+        else:
+            mj_bodies.append(model.body("hand").id)
+    for i in range(n_distractors):
+        mj_bodies.append(model.body(f"distractor{i}").id)
+    names = [
+        "static" if b == 0 else mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, b) or ""
+        for b in mj_bodies
+    ]
+    index_of_mj_body = {b: i for i, b in enumerate(mj_bodies)}
+    geom_body = np.array(
+        [index_of_mj_body.get(int(model.geom_bodyid[g]), -1) for g in range(model.ngeom)],
+        dtype=np.int8,
+    )
     return BuiltScene(
         model=model,
         camera_id=int(model.camera("camera").id),
@@ -354,5 +468,12 @@ def build_scene(
         hand_mocap=mocap("hand") if scene.hand.enabled else None,
         object_geom_id=int(model.geom("object").id),
         geom_body=geom_body,
-        object_half_extents_m=half_extents,
+        object_half_extents_m=half_extents_m,
+        body_names=tuple(names),
+        body_ids=tuple(int(b) for b in mj_bodies),
+        hand=hand_model,
+        distractor_mocaps=tuple(mocap(f"distractor{i}") for i in range(n_distractors)),
+        distractor_geom_ids=tuple(
+            int(model.geom(f"distractor{i}").id) for i in range(n_distractors)
+        ),
     )

@@ -1,22 +1,37 @@
 """Camera ego-motion with exact velocities: the camera's pose in the world over time.
 
 The world frame is the OpenCV optical frame of the camera at rest; a static camera has
-``T_world_cam = I``. MuJoCo is not involved: the scene moves its camera body to these poses.
+``T_world_cam = I``. Two models: a sinusoidal sway, and captured motion replayed from a file
+(TUM, BVH joint, CSV) that starts at the rest pose. MuJoCo is not involved: the scene moves its
+camera body to these poses.
 """
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from roft_sim.geometry import matrix_from_rotvec, skew
-from roft_sim.scene.config import CameraMotionConfig, CameraSwayConfig
+from roft_sim.errors import ConfigError
+from roft_sim.geometry import invert_transform, matrix_from_rotvec, skew
+from roft_sim.scene.config import CameraFileMotionConfig, CameraMotionConfig, CameraSwayConfig
+from roft_sim.trajectories.captured import read_pose_samples
+from roft_sim.trajectories.rigid_map import RigidlyMappedTrajectory
+from roft_sim.trajectories.samples import (
+    is_uniform,
+    lowpass_poses,
+    remove_position_drift,
+    resample_uniform,
+    scale_speed,
+    window_samples,
+)
+from roft_sim.trajectories.spline import SplinePoseTrajectory
 
 F64 = NDArray[np.float64]
 
-__all__ = ["CameraPoses", "camera_poses", "so3_left_jacobian"]
+__all__ = ["CameraPoses", "camera_poses", "file_camera_trajectory", "so3_left_jacobian"]
 
 _PHASE_T = np.array([0.0, 2.0, 4.0]) * np.pi / 3.0
 _PHASE_R = np.pi / 2.0 + _PHASE_T
@@ -48,7 +63,11 @@ def so3_left_jacobian(r: ArrayLike) -> F64:
 
 
 def camera_poses(config: CameraMotionConfig | None, t_s: ArrayLike) -> CameraPoses:
-    """Camera poses at times ``t_s`` ``(N,)`` [s]; None = a static camera at the world origin."""
+    """Camera poses at times ``t_s`` ``(N,)`` [s]; None = a static camera at the world origin.
+
+    Raises:
+        ConfigError: a captured camera motion (``kind = "file"``) ends before a time asked for.
+    """
     t = np.atleast_1d(np.asarray(t_s, dtype=np.float64))
     n = t.shape[0]
     if config is None:
@@ -57,6 +76,8 @@ def camera_poses(config: CameraMotionConfig | None, t_s: ArrayLike) -> CameraPos
             v_world_mps=np.zeros((n, 3)),
             w_world_radps=np.zeros((n, 3)),
         )
+    if isinstance(config, CameraFileMotionConfig):
+        return _file_camera_poses(config, t)
     if not isinstance(config, CameraSwayConfig):
         raise TypeError(f"unsupported camera motion {config!r}")
     omega = 2.0 * np.pi * config.frequency_hz
@@ -73,3 +94,54 @@ def camera_poses(config: CameraMotionConfig | None, t_s: ArrayLike) -> CameraPos
     T[:, :3, 3] = p
     w = np.einsum("nij,nj->ni", so3_left_jacobian(r), r_dot)
     return CameraPoses(T_world_cam=T, v_world_mps=v, w_world_radps=w)
+
+
+@functools.lru_cache(maxsize=8)
+def file_camera_trajectory(config: CameraFileMotionConfig) -> RigidlyMappedTrajectory:
+    """The captured camera motion as a trajectory ``T_world_cam(t)`` (cached per config: the
+    renderer asks for one time per frame).
+
+    The file is read with :func:`roft_sim.trajectories.captured.read_pose_samples`, cleaned in
+    the order of captured object motion (uniform resampling when filtering, drift removal,
+    low-pass, window, speed) and replayed by a :class:`SplinePoseTrajectory` (exact
+    derivatives); the anchoring is the rigid map of :class:`CameraFileMotionConfig`.
+
+    Raises:
+        DatasetFormatError: a malformed file.
+        ConfigError: a missing joint or bad settings.
+    """
+    samples = read_pose_samples(
+        config.path,
+        config.format,
+        joint=config.joint,
+        relative_to=config.relative_to,
+        bvh_unit=config.bvh_unit,
+    )
+    if (config.lowpass_hz or config.remove_drift_window_s) and not is_uniform(samples):
+        samples = resample_uniform(samples)
+    if config.remove_drift_window_s:
+        samples = remove_position_drift(samples, config.remove_drift_window_s)
+    if config.lowpass_hz:
+        samples = lowpass_poses(samples, config.lowpass_hz)
+    if config.window_s is not None:
+        samples = window_samples(samples, *config.window_s)
+    samples = scale_speed(samples, config.speed_scale)
+    spline = SplinePoseTrajectory(samples.t_s, samples.T_ref_obj)
+    T_body_cam = config.camera_in_body.T_hand_obj
+    T_ref_cam0 = spline.sample(np.array([spline.start_s])).T_ref_obj[0] @ T_body_cam
+    return RigidlyMappedTrajectory(spline, T_left=invert_transform(T_ref_cam0), T_right=T_body_cam)
+
+
+def _file_camera_poses(config: CameraFileMotionConfig, t: F64) -> CameraPoses:
+    trajectory = file_camera_trajectory(config)
+    t_traj = float(trajectory.start_s) + t
+    if t.size and float(t_traj.max()) > float(trajectory.end_s) + 1e-9:
+        raise ConfigError(
+            f"camera motion {str(config.path)!r} lasts {trajectory.end_s - trajectory.start_s:.3f}"
+            f" s but the scenario needs {float(t.max()):.3f} s; shorten the scenario, pick a "
+            "longer window_s, or lower speed_scale"
+        )
+    sample = trajectory.sample(t_traj)
+    return CameraPoses(
+        T_world_cam=sample.T_ref_obj, v_world_mps=sample.v_mps, w_world_radps=sample.w_radps
+    )

@@ -97,7 +97,7 @@ def test_hand_occluder_hides_part_of_the_object_and_moves_with_it():
         scene=SceneConfig(
             table=TableConfig(texture_px=64),
             background=BackgroundConfig(texture_px=64),
-            hand=HandConfig(enabled=True),
+            hand=HandConfig(enabled=True, kind="proxy"),
         )
     )
     no_hand = small_scenario(

@@ -50,7 +50,7 @@ def test_scene_contents_and_body_map():
     scene = SceneConfig(
         table=TableConfig(texture_px=32),
         background=BackgroundConfig(texture_px=32),
-        hand=HandConfig(enabled=True, finger_count=3),
+        hand=HandConfig(enabled=True, kind="proxy", finger_count=3),
     )
     built = _build(scene=scene, render=RenderConfig(msaa_samples=4, znear_m=0.02, zfar_m=7.0))
     m = built.model
