@@ -141,7 +141,19 @@ PAPER_ROWS: tuple[PaperRow, ...] = (
 )
 """The rows of Tables I, II and IV (in Table IV's order)."""
 
-_PAPER_TRACKERS = {"roft", "detector-hold", "detector-ideal"}
+REFERENCE_TRACKER = "roft-reference"
+"""Registry name of the reference-configuration ROFT (branch roft-core); when registered the
+paper run adds :data:`REFERENCE_ROW` and shows it beside our default in the side-by-side table."""
+
+REFERENCE_ROW = PaperRow(
+    key="roft_reference",
+    label="ROFT (reference config)",
+    tracker=REFERENCE_TRACKER,
+    tables=("I", "II"),
+)
+"""ROFT with the C++ reference's configuration, when :data:`REFERENCE_TRACKER` is registered."""
+
+_PAPER_TRACKERS = {"roft", "detector-hold", "detector-ideal", REFERENCE_TRACKER}
 
 
 def paper_rows(keys: Sequence[str] | None = None, *, plugins: bool = True) -> list[PaperRow]:
@@ -152,6 +164,9 @@ def paper_rows(keys: Sequence[str] | None = None, *, plugins: bool = True) -> li
         ConfigError: an unknown row key (the message lists them).
     """
     rows = list(PAPER_ROWS)
+    if REFERENCE_TRACKER in discover_trackers():
+        after_roft = next(i for i, r in enumerate(rows) if r.key == "roft") + 1
+        rows.insert(after_roft, REFERENCE_ROW)
     if plugins:
         for name in sorted(discover_trackers()):
             if name not in _PAPER_TRACKERS:
@@ -533,6 +548,112 @@ def _write_paper_figures(
     return written
 
 
+_SIDE_BY_SIDE = (
+    ("DOPE", "detector", "DOPE (5 fps, held)"),
+    ("ROFT", "roft_reference", "ROFT, reference config"),
+    ("ROFT", "roft", "ROFT, our default"),
+)
+"""(paper Table I method, sim row key, label) of the side-by-side tables."""
+
+
+def side_by_side_tables(
+    results: dict[str, RowMetrics], paper: PaperTables, entries: Sequence[str]
+) -> dict[str, tuple[list[Column], list[dict[str, Any]]]]:
+    """Per Table I metric: per object and ALL, for DOPE and for ROFT in the reference and in
+    our default configuration, the paper's number, the simulated one and ``sim - paper``.
+    A sim row that was not run (e.g. ``roft_reference`` before it is registered) is left out."""
+    present = [(m, k, label) for m, k, label in _SIDE_BY_SIDE if k in results]
+    out = {}
+    for metric, title in (
+        ("add_auc_pct", "ADD-AUC (%)"),
+        ("rmse_t_cm", "RMSE e_t (cm)"),
+        ("rmse_a_deg", "RMSE e_a (deg)"),
+    ):
+        columns = [Column("entry", "object", align="left")]
+        for _, key, label in present:
+            columns += [
+                Column(f"{key}:paper", f"{label}: paper", ".2f"),
+                Column(f"{key}:sim", "sim", ".2f"),
+                Column(f"{key}:diff", "sim - paper", "+.2f"),
+            ]
+        table_rows = []
+        for entry in entries:
+            row: dict[str, Any] = {"entry": entry}
+            for method, key, _ in present:
+                ref = paper.table1[method][metric].get(entry)
+                sim = results[key].get(entry, {}).get(metric)
+                row[f"{key}:paper"] = ref
+                row[f"{key}:sim"] = sim
+                row[f"{key}:diff"] = None if ref is None or sim is None else sim - ref
+            table_rows.append(row)
+        out[title] = (columns, table_rows)
+    return out
+
+
+TABLE4_ORDER_ROWS = (
+    "roft_gt_mask_pose",
+    "roft_gt_pose",
+    "roft_gt_mask",
+    "roft",
+    "roft_no_pose_sync",
+    "roft_no_outlier_rejection",
+    "roft_no_mask_sync",
+    "roft_no_velocity",
+    "roft_no_pose",
+)
+"""The nine ROFT rows of Table IV whose order is compared (:func:`table4_order`)."""
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class RowOrder:
+    """How the simulated Table IV rows rank against the paper's, for one metric."""
+
+    metric: str
+    """``add_auc_pct``, ``rmse_t_cm`` or ``rmse_a_deg``."""
+    kendall_tau: float | None
+    """Kendall's tau-b between the paper's and the simulated values over the rows run (1: same
+    order, -1: reversed); None with fewer than 3 rows."""
+    rows: int
+    """How many of the nine rows were compared."""
+    paper_order: tuple[str, ...]
+    """Row keys from best to worst in the paper."""
+    sim_order: tuple[str, ...]
+    """Row keys from best to worst in the simulation."""
+
+
+def table4_order(results: dict[str, RowMetrics], paper: PaperTables) -> list[RowOrder]:
+    """Kendall's tau between the paper's and the simulated values of the nine ROFT rows of
+    Table IV (:data:`TABLE4_ORDER_ROWS`), per metric (ALL)."""
+    from scipy.stats import kendalltau
+
+    labels = {r.key: r.label for r in PAPER_ROWS}
+    out = []
+    for metric in ("add_auc_pct", "rmse_t_cm", "rmse_a_deg"):
+        keys = [
+            k
+            for k in TABLE4_ORDER_ROWS
+            if _all(results, k, metric) is not None and labels[k] in paper.table4
+        ]
+        ref = [paper.table4[labels[k]][metric] for k in keys]
+        sim = [float(_all(results, k, metric)) for k in keys]  # type: ignore[arg-type]
+        sign = -1.0 if metric == "add_auc_pct" else 1.0  # best first
+        tau = None if len(keys) < 3 else float(kendalltau(ref, sim).statistic)
+        out.append(
+            RowOrder(
+                metric=metric,
+                kendall_tau=tau,
+                rows=len(keys),
+                paper_order=tuple(
+                    k for _, k in sorted(zip([sign * v for v in ref], keys, strict=True))
+                ),
+                sim_order=tuple(
+                    k for _, k in sorted(zip([sign * v for v in sim], keys, strict=True))
+                ),
+            )
+        )
+    return out
+
+
 @dataclass(frozen=True, slots=True, kw_only=True)
 class PaperResult:
     """What :func:`run_paper` produced."""
@@ -587,6 +708,18 @@ def write_paper_tables(
     tex.append(latex_table(cols, trs, caption="Table IV in simulation: ablation (ALL)"))
     md.append("![Table IV](table4.png)\n")
     _write_paper_figures(out, table1, table2, table4)
+
+    md += ["## Side by side: paper, sim (reference config), sim (our default)", ""]
+    for title, (cols, trs) in side_by_side_tables(results, paper, entries).items():
+        md += [f"### {title}", "", markdown_table(cols, trs)]
+    md += ["## Table IV: order of the nine ROFT rows (Kendall tau, paper vs sim)", ""]
+    for order in table4_order(results, paper):
+        tau = "n/a" if order.kendall_tau is None else f"{order.kendall_tau:+.3f}"
+        md.append(
+            f"- {order.metric}: tau {tau} over {order.rows} rows; paper best to worst "
+            f"{', '.join(order.paper_order)}; sim {', '.join(order.sim_order)}"
+        )
+    md.append("")
     md += ["## The paper's findings, checked", ""]
     for f in findings:
         verdict = {True: "holds", False: "DOES NOT HOLD", None: "not checked"}[f.holds]

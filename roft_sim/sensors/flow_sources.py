@@ -53,6 +53,7 @@ __all__ = [
     "DIS_PRESETS",
     "NvofLikeFlowSource",
     "NVOF_GRID_PX",
+    "NVOF_PRECISION_PX",
     "s10_5_from_flow_px",
     "flow_px_from_s10_5",
     "make_flow_source",
@@ -65,6 +66,10 @@ FLOW_SOURCE_SPECS = ("gt", "gt+noise", "dis[:<preset>]", "nvof-like:<inner>", "s
 
 NVOF_GRID_PX = 4
 """NVOF 1.0 output grid: one vector per 4x4 block."""
+
+NVOF_PRECISION_PX = 0.25
+"""NVOF 1.0 (Turing) vector precision: "4x4 vectors at 1/4 pixel resolution" (NVIDIA Optical
+Flow SDK product page, developer.nvidia.com/opticalflow-sdk); the S10.5 format could hold 1/32."""
 
 _S10_5_SCALE = 32.0
 """NVOF's S10.5 fixed point: int16 with 5 fractional bits (value / 32 = pixels)."""
@@ -369,19 +374,36 @@ class NvofLikeFlowSource:
     """Any flow reduced to NVOF 1.0's output: one vector per ``grid_px`` block, S10.5 int16.
 
     Each block's vector is the mean of the inner flow over the block's valid pixels (NVOF
-    estimates one motion per block), then rounded to 1/32 px and saturated to +-1024 px. So
-    against the block mean the error is at most 1/64 px; against the inner flow at a pixel it is
-    at most 1/64 px plus the flow's spread within the block. Blocks without a valid pixel are
-    invalid (0). Consumers read the vector of pixel ``(u, v)`` at ``[v // 4, u // 4]``.
+    estimates one motion per block, so a block on a motion boundary gets a mixture), rounded to
+    the hardware's ``precision_px`` (1/4 px, :data:`NVOF_PRECISION_PX`), stored in S10.5 and
+    saturated to +-1024 px. So against the block mean the error is at most ``precision_px / 2``;
+    against the inner flow at a pixel at most that plus the flow's spread within the block.
+    Blocks without a valid pixel are invalid (0). Consumers read the vector of pixel ``(u, v)``
+    at ``[v // 4, u // 4]``. The estimation errors (large displacements, low texture, smoothing
+    across motion boundaries) are the inner source's: pair it with ``dis`` (docs/sensors.md
+    measures them per kind of pixel).
     """
 
-    __slots__ = ("inner", "grid_px")
+    __slots__ = ("inner", "grid_px", "precision_px")
 
-    def __init__(self, inner: FlowSource, *, grid_px: int = NVOF_GRID_PX) -> None:
+    def __init__(
+        self,
+        inner: FlowSource,
+        *,
+        grid_px: int = NVOF_GRID_PX,
+        precision_px: float = NVOF_PRECISION_PX,
+    ) -> None:
         if grid_px < 1:
             raise ConfigError(f"grid_px must be >= 1, got {grid_px}")
+        steps = precision_px * 32
+        if not (np.isfinite(steps) and steps >= 1 and abs(steps - round(steps)) < 1e-9):
+            raise ConfigError(
+                f"precision_px must be a whole multiple of 1/32 px (S10.5), >= 1/32, got "
+                f"{precision_px}; NVOF 1.0 gives 0.25"
+            )
         self.inner = inner
         self.grid_px = int(grid_px)
+        self.precision_px = float(precision_px)
 
     @property
     def name(self) -> str:
@@ -402,7 +424,8 @@ class NvofLikeFlowSource:
         total = np.where(ok[..., None], blocks, 0.0).sum(axis=(1, 3))
         valid = count > 0
         mean = np.where(valid[..., None], total / np.maximum(count, 1)[..., None], 0.0)
-        flow = flow_px_from_s10_5(s10_5_from_flow_px(mean))
+        rounded = np.round(mean / self.precision_px) * self.precision_px
+        flow = flow_px_from_s10_5(s10_5_from_flow_px(rounded))
         return FlowField(
             flow_px=flow,
             from_k=from_k,

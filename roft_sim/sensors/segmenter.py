@@ -6,13 +6,15 @@ mask is resized back with bilinear interpolation and cropped, so edges take inte
 ROFT's reader counts any value > 1 as object (``roft_reference.md`` sections 8.5). This model
 reproduces that chain around the ground truth (docs/sensors.md):
 
-1. miss with probability ``miss_probability`` (and always when fewer than ``min_visible_px``
-   pixels are visible);
+1. miss with probability ``miss_probability + occlusion_miss_gain (1 - visible_fraction)``
+   (and always when fewer than ``min_visible_px`` pixels are visible);
 2. pad to the inference aspect ratio (centred) and area-resize the visible mask to the
    inference size;
 3. boundary noise at that resolution: the mask's signed distance plus a per-frame global
    offset (dilation > 0, erosion < 0) and a smooth random field (``boundary_noise_px`` std,
-   ``boundary_noise_scale_px`` correlation), thresholded at 0;
+   ``boundary_noise_scale_px`` correlation), thresholded at 0; both scaled by
+   ``1 + occlusion_boundary_gain (1 - visible_fraction)`` (an occluded object has more, and
+   less certain, boundary);
 4. the mask head's coarse grid: the box crop is area-resized to ``mask_head_px`` squared
    (28 in Mask R-CNN), resized back bilinearly and thresholded at 0.5;
 5. occasionally a spurious blob (another instance of the class, OR-ed in like the reference
@@ -71,6 +73,10 @@ class SegmenterConfig:
     read_threshold: int = 1
     """Upscaled 0..255 values above this are object (ROFT's reader: > 1). 127 = plain
     bilinear-and-round."""
+    occlusion_miss_gain: float = 0.3
+    """Added miss probability per unit of occluded fraction ``1 - visible_fraction``."""
+    occlusion_boundary_gain: float = 1.5
+    """Boundary noise and dilation std are multiplied by ``1 + gain (1 - visible_fraction)``."""
 
     def __post_init__(self) -> None:
         owner = "SegmenterConfig"
@@ -78,7 +84,13 @@ class SegmenterConfig:
             value = getattr(self, name)
             if not 0 <= value <= 1:
                 raise ConfigError(f"{owner}.{name} must be in [0, 1], got {value}")
-        for name in ("dilation_sigma_px", "boundary_noise_px", "boundary_noise_scale_px"):
+        for name in (
+            "dilation_sigma_px",
+            "boundary_noise_px",
+            "boundary_noise_scale_px",
+            "occlusion_miss_gain",
+            "occlusion_boundary_gain",
+        ):
             value = getattr(self, name)
             if not (np.isfinite(value) and value >= 0):
                 raise ConfigError(f"{owner}.{name} must be a finite number >= 0, got {value}")
@@ -149,7 +161,11 @@ def _mask_head(mask: Bool, grid_px: int) -> Bool:
 
 
 def simulate_mask_uint8(
-    gt_mask: Bool, config: SegmenterConfig, rng: np.random.Generator
+    gt_mask: Bool,
+    config: SegmenterConfig,
+    rng: np.random.Generator,
+    *,
+    visible_fraction: float = 1.0,
 ) -> U8 | None:
     """The segmenter's mask as the reference tool writes it: (H, W) uint8 0..255 with
     intermediate values on the edges from the bilinear upscale; None for a miss.
@@ -158,7 +174,12 @@ def simulate_mask_uint8(
         gt_mask: (H, W) bool ground-truth VISIBLE mask, full resolution.
         config: artefact statistics.
         rng: generator for this frame (e.g. ``frame_rng(seed, k)``).
+        visible_fraction: visible mask area over the unoccluded silhouette's, in [0, 1]
+            (1: not occluded); raises the miss rate and the boundary noise.
     """
+    if not 0.0 <= visible_fraction <= 1.0:
+        raise ValueError(f"visible_fraction must be in [0, 1], got {visible_fraction}")
+    occluded = 1.0 - visible_fraction
     gt = np.asarray(gt_mask, dtype=bool)
     if gt.ndim != 2:
         raise ValueError(f"gt_mask must be a 2-D bool array, got shape {gt.shape}")
@@ -173,9 +194,11 @@ def simulate_mask_uint8(
     scale = wi / wp
 
     # Draws, in a fixed order (a miss ends the frame: each frame has its own generator).
-    if rng.random() < c.miss_probability or np.count_nonzero(gt) < max(c.min_visible_px, 1):
+    p_miss = c.miss_probability + c.occlusion_miss_gain * occluded
+    if rng.random() < p_miss or np.count_nonzero(gt) < max(c.min_visible_px, 1):
         return None
-    offset_px = c.dilation_bias_px + c.dilation_sigma_px * rng.standard_normal()
+    noise_gain = 1.0 + c.occlusion_boundary_gain * occluded
+    offset_px = c.dilation_bias_px + noise_gain * c.dilation_sigma_px * rng.standard_normal()
     field = _smooth_field(rng, (hi, wi), c.boundary_noise_scale_px * scale)
     blob = rng.random() < c.spurious_blob_probability
     blob_centre = rng.uniform([left, top], [left + w, top + h]) * scale
@@ -191,7 +214,8 @@ def simulate_mask_uint8(
     if not low.any():
         return None  # too small for the network at its resolution
     sdf = _signed_distance(low)
-    noisy = sdf + np.float32(offset_px * scale) + np.float32(c.boundary_noise_px * scale) * field
+    noise_px = noise_gain * c.boundary_noise_px * scale
+    noisy = sdf + np.float32(offset_px * scale) + np.float32(noise_px) * field
     low = noisy > 0
     if c.mask_head_px > 0:
         low = _mask_head(low, c.mask_head_px)
@@ -217,8 +241,14 @@ def simulate_mask_uint8(
     return out
 
 
-def simulate_mask(gt_mask: Bool, config: SegmenterConfig, rng: np.random.Generator) -> Bool | None:
+def simulate_mask(
+    gt_mask: Bool,
+    config: SegmenterConfig,
+    rng: np.random.Generator,
+    *,
+    visible_fraction: float = 1.0,
+) -> Bool | None:
     """The segmenter's mask as a tracker reads it: (H, W) bool (values above
     ``read_threshold``), or None for a miss. Same draws as :func:`simulate_mask_uint8`."""
-    out = simulate_mask_uint8(gt_mask, config, rng)
+    out = simulate_mask_uint8(gt_mask, config, rng, visible_fraction=visible_fraction)
     return None if out is None else out > config.read_threshold

@@ -13,6 +13,7 @@ from roft_sim.errors import ConfigError
 from roft_sim.geometry import CameraIntrinsics, matrix_from_rotvec, transform_from_rt
 from roft_sim.records import FlowField, PoseTrack
 from roft_sim.sensors.flow_sources import (
+    NVOF_PRECISION_PX,
     DisFlowSource,
     FlowNoiseConfig,
     FlowSource,
@@ -202,17 +203,21 @@ def test_dis_recovers_a_textured_translation(preset, max_median_epe_px):
         DisFlowSource("slow")
 
 
-def test_nvof_like_quantisation_and_block_bounds():
+@pytest.mark.parametrize("precision_px", [NVOF_PRECISION_PX, 1 / 32])
+def test_nvof_like_quantisation_and_block_bounds(precision_px):
+    half_step = precision_px / 2
     seq = planar_sequence(3)
     holes = FlowNoiseConfig(
         sigma_px=0, relative_sigma=0, outlier_fraction=0, hole_fraction=0.2, hole_size_px=8
     )
     inner = NoisyGroundTruthFlowSource(holes, seed=1)  # exact flow with 8x8 holes
-    nv = NvofLikeFlowSource(inner)
+    nv = NvofLikeFlowSource(inner) if precision_px == NVOF_PRECISION_PX else None
+    nv = nv or NvofLikeFlowSource(inner, precision_px=precision_px)
     assert nv.name == "nvof-like:gt+noise"
     f_in, f_nv = inner.flow(seq, 0, 1), nv.flow(seq, 0, 1)
     assert f_nv.grid_px == 4 and f_nv.flow_px.shape == (30, 40, 2)
-    np.testing.assert_array_equal(f_nv.flow_px * 32, np.rint(f_nv.flow_px * 32))  # S10.5 values
+    steps = f_nv.flow_px / precision_px  # whole steps of the hardware precision
+    np.testing.assert_array_equal(steps, np.rint(steps))
     dense_in = f_in.dense(*CAM.shape).astype(np.float64)
     blocks = dense_in.reshape(30, 4, 40, 4, 2)
     with warnings.catch_warnings():
@@ -222,13 +227,18 @@ def test_nvof_like_quantisation_and_block_bounds():
     ok = f_nv.valid
     assert ok is not None and 0 < (~ok).sum() < ok.size
     np.testing.assert_array_equal(~ok, np.isnan(block_mean).all(-1))  # no valid pixel -> invalid
-    assert np.abs(f_nv.flow_px[ok] - block_mean[ok]).max() <= 1 / 64 + 1e-6
-    # Per pixel: |nvof - inner| <= 1/64 + the inner flow's spread within the block.
+    assert np.abs(f_nv.flow_px[ok] - block_mean[ok]).max() <= half_step + 1e-6
+    # Per pixel: |nvof - inner| <= half a step + the inner flow's spread within the block.
     per_pixel = np.abs(f_nv.dense(*CAM.shape) - dense_in)
-    bound = np.repeat(np.repeat(spread, 4, 0), 4, 1) + 1 / 64 + 1e-6
+    bound = np.repeat(np.repeat(spread, 4, 0), 4, 1) + half_step + 1e-6
     finite = np.isfinite(per_pixel).all(-1)
     assert (per_pixel[finite] <= bound[finite]).all()
     assert NvofLikeFlowSource(StoredFlowSource("exact")).flow(seq, 0, 2) is None
+
+
+def test_nvof_like_precision_must_be_whole_s10_5_steps():
+    with pytest.raises(ConfigError, match="precision_px"):
+        NvofLikeFlowSource(GroundTruthFlowSource(), precision_px=0.1)
 
 
 def test_s10_5_round_trip_and_saturation():

@@ -119,3 +119,45 @@ def test_config_loads_from_toml(tmp_path):
     path.write_text("miss_prob = 0.1\n")
     with pytest.raises(ConfigError, match="did you mean 'miss_probability'"):
         load_dataclass_toml(SegmenterConfig, path)
+
+
+def test_occlusion_raises_the_miss_rate_by_its_gain():
+    gt = _gt()[::4, ::4]
+    cfg = dataclasses.replace(
+        QUIET,
+        miss_probability=0.1,
+        occlusion_miss_gain=0.4,
+        inference_size_px=None,
+        mask_head_px=0,
+        min_visible_px=10,
+    )
+    n = 1000
+    misses = sum(
+        simulate_mask(gt, cfg, frame_rng(5, k), visible_fraction=0.5) is None for k in range(n)
+    )
+    lo, hi = stats.binom.interval(0.999, n, 0.1 + 0.4 * 0.5)
+    assert lo <= misses <= hi, misses
+
+
+def test_occlusion_scales_the_boundary_noise():
+    gt = _gt()
+    noisy = dataclasses.replace(
+        QUIET, boundary_noise_px=2.0, dilation_sigma_px=1.0, occlusion_miss_gain=0.0
+    )
+
+    def mean_iou(cfg, vis):
+        return np.mean(
+            [
+                mask_iou(simulate_mask(gt, cfg, frame_rng(6, k), visible_fraction=vis), gt)
+                for k in range(30)
+            ]
+        )
+
+    assert mean_iou(noisy, 0.3) < mean_iou(noisy, 1.0) - 0.01
+    no_gain = dataclasses.replace(noisy, occlusion_boundary_gain=0.0, occlusion_miss_gain=0.0)
+    np.testing.assert_array_equal(
+        simulate_mask(gt, no_gain, frame_rng(6, 0), visible_fraction=0.3),
+        simulate_mask(gt, no_gain, frame_rng(6, 0)),
+    )
+    with pytest.raises(ValueError, match="visible_fraction"):
+        simulate_mask(gt, noisy, frame_rng(6, 0), visible_fraction=1.5)

@@ -1,0 +1,74 @@
+"""End-point errors per kind of pixel against hand-made flows with known errors."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from roft_sim.errors import ConfigError
+from roft_sim.records import FlowField
+from roft_sim.sensors.flow_accuracy import flow_error_breakdown, flow_pixel_categories
+
+H, W = 40, 60
+
+
+def _field(flow: np.ndarray, valid=None, grid_px: int = 1) -> FlowField:
+    return FlowField(
+        flow_px=flow.astype(np.float32), from_k=0, to_k=1, grid_px=grid_px, valid=valid
+    )
+
+
+def _scene():
+    """Left half static, right half moving by (20, 0) px; textured except a flat top band."""
+    truth = np.zeros((H, W, 2))
+    truth[:, 30:, 0] = 20.0
+    grey = np.random.default_rng(0).uniform(0, 255, (H, W))
+    grey[:8] = 128.0
+    return truth, grey
+
+
+def test_categories_find_the_boundary_the_large_motion_and_the_flat_band():
+    truth, grey = _scene()
+    cats = flow_pixel_categories(truth, grey, None, boundary_px=2)
+    assert cats["motion_boundary"][:, 27:33].all() and not cats["motion_boundary"][:, :27].any()
+    assert not cats["motion_boundary"][:, 33:].any()
+    assert cats["large_displacement"][:, 30:].all() and not cats["large_displacement"][:, :30].any()
+    assert cats["low_texture"][:4].all() and not cats["low_texture"][15:].any()
+
+
+def test_errors_land_in_the_category_they_were_put_in():
+    truth, grey = _scene()
+    estimate = truth.copy()
+    estimate[:, 29:31, 0] = 10.0  # a block mixing both motions: 10 px off on 2 columns
+    summary = flow_error_breakdown(_field(estimate), _field(truth), grey)
+    assert summary["all"].pixels == H * W
+    assert summary["all"].mean_epe_px == pytest.approx(10.0 * 2 / W)
+    boundary = flow_pixel_categories(truth, grey, None)["motion_boundary"]
+    assert summary["motion_boundary"].pixels == boundary.sum()
+    assert summary["motion_boundary"].mean_epe_px == pytest.approx(10.0 * 2 * H / boundary.sum())
+    assert summary["motion_boundary"].fl_pct == pytest.approx(100.0 * 2 * H / boundary.sum())
+    assert summary["low_texture"].pixels == 4 * W  # the 9-px window leaves the flat band at row 4
+
+
+def test_fl_needs_both_3_px_and_5_percent_and_invalid_estimates_are_counted_apart():
+    truth = np.full((H, W, 2), 100.0)  # |F| = 141 px: 5 % is 7.1 px
+    estimate = truth + np.array([4.0, 0.0])  # 4 px: > 3 px but < 5 %
+    valid = np.ones((H, W), bool)
+    valid[:10] = False
+    grey = np.random.default_rng(1).uniform(0, 255, (H, W))
+    s = flow_error_breakdown(_field(estimate, valid), _field(truth), grey)["all"]
+    assert s.fl_pct == 0.0 and s.mean_epe_px == pytest.approx(4.0)
+    assert s.pixels == 30 * W and s.invalid_pct == pytest.approx(25.0)
+    worse = flow_error_breakdown(_field(truth + 10.0), _field(truth), grey)["all"]
+    assert worse.fl_pct == 100.0
+
+
+def test_grid_estimates_are_read_as_consumers_read_them_and_pairs_must_match():
+    truth, grey = _scene()
+    coarse = truth[::4, ::4]
+    s = flow_error_breakdown(_field(coarse, grid_px=4), _field(truth), grey)["all"]
+    # block 7 (columns 28-31) holds column 28's vector: columns 30 and 31 are 20 px off
+    assert s.mean_epe_px == pytest.approx(20.0 * 2 / W)
+    other = FlowField(flow_px=truth.astype(np.float32), from_k=1, to_k=2)
+    with pytest.raises(ConfigError, match="same frame pair"):
+        flow_error_breakdown(other, _field(truth), grey)
