@@ -25,7 +25,7 @@ from roft_sim.errors import ConfigError
 from roft_sim.geometry import CameraIntrinsics
 from roft_sim.scene.config import CameraMotionConfig, RenderConfig, SceneConfig
 from roft_sim.sensors.networks import NetworksConfig
-from roft_sim.trajectories import TrajectoryConfig
+from roft_sim.trajectories import HandMotionConfig, TrajectoryConfig
 
 __all__ = ["CameraConfig", "ObjectConfig", "Scenario", "load_scenario", "FAST_YCB_CAMERA_CONFIG"]
 
@@ -221,6 +221,8 @@ def load_scenario(path: str | Path) -> Scenario:
     traj_path = getattr(trajectory, "path", None)
     if isinstance(traj_path, Path) and not traj_path.is_absolute():
         trajectory = dataclasses.replace(trajectory, path=base_dir / traj_path)
+    if isinstance(trajectory, HandMotionConfig):
+        trajectory = trajectory.with_base_dir(base_dir)
     camera = scenario.camera
     motion_path = getattr(camera.motion, "path", None)
     if isinstance(motion_path, Path) and not motion_path.is_absolute():

@@ -71,8 +71,12 @@ def test_fast_ycb_scenarios_use_the_fast_ycb_camera_and_fast_motion():
         assert k.fx_px == k.fy_px == pytest.approx(fov_fx_px, rel=1e-12)
         assert (k.cx_px, k.cy_px) == (640.0, 360.0)
         assert s.object.name == name and s.camera.motion is None
-        assert s.trajectory.peak_linear_speed_mps == 0.6
-        assert s.trajectory.peak_angular_speed_dps == 266.0
+        # captured hand motion when present, else the fitted continuous profile; the earlier
+        # bursty motion (peaks 0.6 m/s, 266 deg/s) stays selectable (source = "bursty")
+        assert s.trajectory.kind == "hand-motion" and s.trajectory.source == "auto"
+        assert s.trajectory.captured is not None and s.trajectory.captured.format == "tum"
+        assert s.trajectory.bursty.peak_linear_speed_mps == 0.6
+        assert s.trajectory.bursty.peak_angular_speed_dps == 266.0
 
 
 def test_ci_scenarios_are_small_short_and_need_no_files():

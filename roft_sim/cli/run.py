@@ -86,9 +86,10 @@ def add_input_arguments(parser: argparse.ArgumentParser, *, sweep: bool = False)
     parser.add_argument(
         "--init",
         default="first-detection",
-        choices=("first-detection", "gt"),
-        help="initial condition: the first pose that arrives (default, as the reference) or the "
-        "ground truth of frame 0",
+        choices=("first-detection", "robust", "gt"),
+        help="initial condition: the first pose that arrives (default, as the reference), the "
+        "first pose that passes a depth-rendering test against the measured depth (robust; the "
+        "run log says when and why it waited), or the ground truth of frame 0",
     )
     if not sweep:
         parser.add_argument("--seed", type=int, default=0, help="run seed (default 0)")

@@ -2,6 +2,9 @@
 
 - ``stats FILE --format F`` (or ``--synthetic``): duration, rate and speed statistics, as a
   table or (``--json``) a JSON object.
+- ``stats --hand-motion [--trajectories DIR] [--split tuning|evaluation|both]``: the captured
+  hand-object motion of the split (pooled speed and acceleration percentiles) side by side with
+  the continuous and the bursty synthetic profiles.
 - ``export FILE --format F --fps 30 --out traj.csv`` (or ``--synthetic``): the PLACED
   trajectory ``T_cam_obj`` sampled at ``t_k = k / fps``, as the trajectory CSV.
 
@@ -15,6 +18,7 @@ import argparse
 import json
 import logging
 import math
+import os
 import sys
 from pathlib import Path
 
@@ -26,6 +30,7 @@ from roft_sim.trajectories import (
     TRAJECTORY_FILE_FORMATS,
     CapturedMotionConfig,
     CapturedTrajectory,
+    ContinuousMotionConfig,
     PlacementConfig,
     SpeedStatistics,
     SyntheticMotionConfig,
@@ -68,7 +73,11 @@ _FILE_ONLY_OPTIONS = (
 )
 """Options of a trajectory FILE (``Namespace`` name, flag): refused with ``--synthetic``."""
 
-_SYNTHETIC_ONLY_OPTIONS = (("seed", "--seed"), ("duration_s", "--duration-s"))
+_SYNTHETIC_ONLY_OPTIONS = (
+    ("seed", "--seed"),
+    ("duration_s", "--duration-s"),
+    ("profile", "--profile"),
+)
 """Options of ``--synthetic`` (``Namespace`` name, flag): refused with a FILE."""
 
 
@@ -112,6 +121,12 @@ def _add_source_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--synthetic", action="store_true", help="use the synthetic generator instead of a file"
     )
+    parser.add_argument(
+        "--profile",
+        choices=("bursty", "continuous"),
+        help="synthetic: bursty (minimum-jerk bursts with rests, the default) or continuous "
+        "(keeps turning; fitted to captured hand motion)",
+    )
     parser.add_argument("--seed", type=int, help="synthetic: seed, >= 0 (default 0)")
     parser.add_argument(
         "--duration-s",
@@ -139,6 +154,25 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "--include-gaps",
         action="store_true",
         help="file: also count samples where the spline bridges gaps in its time stamps",
+    )
+    stats.add_argument(
+        "--hand-motion",
+        action="store_true",
+        help="captured hand-object motion (TUM VI rooms, CMU hands) pooled per split, side by "
+        "side with the continuous and bursty synthetic profiles",
+    )
+    stats.add_argument(
+        "--trajectories",
+        type=Path,
+        help="--hand-motion: folder of the shared captures, with tum/ and bvh/ (default "
+        "$ROFT_SIM_TRAJECTORIES, else ../shared/trajectories beside the repository)",
+    )
+    stats.add_argument(
+        "--split",
+        choices=("tuning", "evaluation", "both"),
+        default="both",
+        help="--hand-motion: which captures (tuning: TUM room1 + CMU 02_05, synthetic seeds "
+        "0-9; evaluation: TUM room2, room4 + CMU 02_06, seeds 100-109; default both)",
     )
     stats.add_argument("--json", action="store_true", help="print a JSON object")
     stats.set_defaults(func=_run_stats)
@@ -172,6 +206,10 @@ def trajectory_config_from_args(
             raise ConfigError(
                 f"--duration-s must be a positive number of seconds, at most "
                 f"{MAX_SYNTHETIC_DURATION_S:g} (an hour), got {duration_s}"
+            )
+        if getattr(args, "profile", None) == "continuous":
+            return ContinuousMotionConfig(
+                seed=seed, duration_s=duration_s, working_distance_m=working_distance_m
             )
         return SyntheticMotionConfig(
             seed=seed, duration_s=duration_s, working_distance_m=working_distance_m
@@ -245,7 +283,96 @@ def _build(
     return config, trajectory
 
 
+SPLIT_SEEDS: dict[str, tuple[int, ...]] = {
+    "tuning": tuple(range(10)),
+    "evaluation": tuple(range(100, 110)),
+}
+"""Synthetic seeds of each split (the project-wide split)."""
+
+HAND_MOTION_DURATION_S = 30.0
+"""Length of each synthetic motion pooled by ``stats --hand-motion`` [s]."""
+
+
+def trajectories_dir_from_args(given: Path | None) -> Path:
+    """``--trajectories``, else ``$ROFT_SIM_TRAJECTORIES``, else ``../shared/trajectories``
+    beside the repository."""
+    from roft_sim.trajectories import default_trajectories_dir
+
+    if given is not None:
+        return given
+    if os.environ.get("ROFT_SIM_TRAJECTORIES"):
+        return Path(os.environ["ROFT_SIM_TRAJECTORIES"]).expanduser()
+    return default_trajectories_dir()
+
+
+def _run_hand_motion_stats(args: argparse.Namespace) -> int:
+    from roft_sim.trajectories.statistics import (
+        captured_distribution,
+        fit_error,
+        format_distribution_table,
+        synthetic_distribution,
+    )
+
+    if args.file is not None or args.synthetic:
+        raise ConfigError("--hand-motion compares the shared captures; drop FILE / --synthetic")
+    folder = trajectories_dir_from_args(args.trajectories)
+    if not folder.is_dir():
+        raise ConfigError(
+            f"captured motion folder {str(folder)!r} does not exist; pass --trajectories DIR "
+            "(the shared trajectories folder, with tum/ and bvh/) or set $ROFT_SIM_TRAJECTORIES"
+        )
+    splits = ("tuning", "evaluation") if args.split == "both" else (args.split,)
+    reports = []
+    for split in splits:
+        seeds = SPLIT_SEEDS[split]
+        seed_text = f"seeds {seeds[0]}-{seeds[-1]}"
+        captured = captured_distribution(split, folder, FAST_YCB_CAMERA)  # type: ignore[arg-type]
+        continuous = synthetic_distribution(
+            f"continuous ({seed_text})",
+            ContinuousMotionConfig(duration_s=HAND_MOTION_DURATION_S),
+            seeds,
+            FAST_YCB_CAMERA,
+        )
+        bursty = synthetic_distribution(
+            f"bursty ({seed_text})",
+            SyntheticMotionConfig(duration_s=HAND_MOTION_DURATION_S),
+            seeds,
+            FAST_YCB_CAMERA,
+        )
+        errors = {d.name: fit_error(captured, d) for d in (continuous, bursty)}
+        reports.append((split, captured, continuous, bursty, errors))
+    if args.json:
+        out = {
+            split: {
+                "captured": c.report(),
+                "continuous": k.report(),
+                "bursty": b.report(),
+                "fit_error_rms_log": {"continuous": e[k.name], "bursty": e[b.name]},
+            }
+            for split, c, k, b, e in reports
+        }
+        json.dump(out, sys.stdout, indent=2)
+        sys.stdout.write("\n")
+        return 0
+    for split, c, k, b, e in reports:
+        print(
+            f"{split.upper()} split: captured hand-object motion vs synthetic profiles "
+            f"(30 Hz samples, {HAND_MOTION_DURATION_S:g} s per seed)"
+        )
+        print(format_distribution_table([c, k, b]))
+        print(
+            "  fit error (RMS log ratio over the 12 percentiles): "
+            + ", ".join(f"{name} {value:.2f}" for name, value in e.items())
+        )
+        print()
+    return 0
+
+
 def _run_stats(args: argparse.Namespace) -> int:
+    if args.hand_motion:
+        return _run_hand_motion_stats(args)
+    if args.trajectories is not None or args.split != "both":
+        raise ConfigError("--trajectories and --split apply only to --hand-motion")
     # speeds do not depend on the placement: report how much stays in view, never fail on it
     config, trajectory = _build(args, default_min_in_view_fraction=0.0)
     if args.fps is not None:

@@ -14,6 +14,7 @@ from typing import Any, Literal
 
 from roft_sim.errors import ConfigError
 from roft_sim.faults import FaultConfig, load_faults
+from roft_sim.harness.robust_start import RobustStartConfig
 from roft_sim.metrics import INVALID_POLICIES, InvalidPolicy
 
 __all__ = [
@@ -32,8 +33,8 @@ GT_SET = "gt"
 NO_SET = "none"
 """No input of that kind (no pose detections, no masks, no flow)."""
 
-InitPolicy = Literal["first-detection", "gt"]
-INIT_POLICIES: tuple[str, ...] = ("first-detection", "gt")
+InitPolicy = Literal["first-detection", "robust", "gt"]
+INIT_POLICIES: tuple[str, ...] = ("first-detection", "robust", "gt")
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -60,7 +61,11 @@ class RunOptions:
     ``none``, or ``auto`` (the first detector set)."""
     init: InitPolicy = "first-detection"
     """``first-detection``: the tracker starts from the first pose that arrives (the reference's
-    behaviour); ``gt``: ``reset`` gets the ground-truth pose and velocity of frame 0."""
+    behaviour); ``robust``: from the first pose that passes the depth-rendering test against
+    the measured depth (earlier ones are held back, :mod:`roft_sim.harness.robust_start`);
+    ``gt``: ``reset`` gets the ground-truth pose and velocity of frame 0."""
+    robust_start: RobustStartConfig = field(default_factory=RobustStartConfig)
+    """Settings of the ``robust`` start's consistency test (unused by the other policies)."""
     seed: int = 0
     """The run's seed; each sequence derives its own ``SeedSequence`` from it and its name."""
     include_rgb: bool = True

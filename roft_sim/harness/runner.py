@@ -42,6 +42,7 @@ from roft_sim.harness.inputs import (
     resolve_object_model,
 )
 from roft_sim.harness.options import RunOptions
+from roft_sim.harness.robust_start import RobustStartGate
 from roft_sim.records import Estimate, ObjectModel, PoseTrack
 from roft_sim.sensors.flow_sources import make_flow_source
 from roft_sim.trackers import (
@@ -132,7 +133,8 @@ class SequenceRun:
     mask_deliveries: tuple[DeliveryEvent, ...]
     """Every mask delivery, in delivery order."""
     inputs: dict[str, str | None]
-    """The resolved pose set, mask set and flow source."""
+    """The resolved pose set, mask set and flow source (and, with ``init = "robust"``, under
+    ``init``, when the tracker could start and why it waited)."""
     seeds: SeedPlan
     """The seeds used."""
     ground_truth: PoseTrack | None
@@ -243,14 +245,22 @@ def run_sequence(
         sequence, options, detection_mode=spec.detection_mode
     )
     renderer = None
-    if spec.needs_depth_renderer:
+    if spec.needs_depth_renderer or options.init == "robust":
         renderer = LazyDepthRenderer(depth_renderer_factory or mujoco_depth_renderer, model)
+    gate = None
+    if options.init == "robust" and renderer is not None:
+        gate = RobustStartGate(
+            config=options.robust_start,
+            renderer=renderer,
+            intrinsics=sequence.intrinsics,
+            fps=int(sequence.fps),
+        )
     context = TrackerContext(
         intrinsics=sequence.intrinsics,
         fps=int(sequence.fps),
         object_model=model,
         rng=np.random.default_rng(seeds.tracker),
-        depth_renderer=renderer,
+        depth_renderer=renderer if spec.needs_depth_renderer else None,
     )
     tracker = create_tracker(spec, context, options.tracker_config)
     ground_truth = sequence.ground_truth()
@@ -271,6 +281,8 @@ def run_sequence(
     for k in range(n):
         a = time.perf_counter()
         observation = stream.observation(k)
+        if gate is not None:
+            observation = gate.filter(observation)
         b = time.perf_counter()
         estimate = tracker.step(observation)
         c = time.perf_counter()
@@ -292,7 +304,7 @@ def run_sequence(
         ledger=stream.ledger,
         pose_deliveries=schedule.deliveries("pose"),
         mask_deliveries=schedule.deliveries("mask"),
-        inputs=inputs.describe(),
+        inputs=inputs.describe() | ({"init": gate.summary()} if gate is not None else {}),
         seeds=seeds,
         ground_truth=ground_truth,
         object_model=model,

@@ -25,7 +25,17 @@ from roft_sim.trajectories.captured import (
     build_captured_trajectory,
     read_pose_samples,
 )
+from roft_sim.trajectories.continuous import (
+    ContinuousHandMotion,
+    ContinuousMotionConfig,
+    generate_continuous_motion,
+)
 from roft_sim.trajectories.fast_ycb import read_fast_ycb_poses
+from roft_sim.trajectories.hand_motion import (
+    HandMotionConfig,
+    default_trajectories_dir,
+    resolve_hand_motion,
+)
 from roft_sim.trajectories.placement import GraspOffset, PlacementConfig, ViewRegion
 from roft_sim.trajectories.rigid_map import RigidlyMappedTrajectory
 from roft_sim.trajectories.samples import (
@@ -54,7 +64,10 @@ __all__ = [
     "BvhMotion",
     "CapturedMotionConfig",
     "CapturedTrajectory",
+    "ContinuousHandMotion",
+    "ContinuousMotionConfig",
     "GraspOffset",
+    "HandMotionConfig",
     "MinimumJerkTrajectory",
     "PlacementConfig",
     "PoseSamples",
@@ -70,6 +83,8 @@ __all__ = [
     "build_captured_trajectory",
     "build_trajectory",
     "bvh_pose_samples",
+    "default_trajectories_dir",
+    "generate_continuous_motion",
     "generate_synthetic_motion",
     "lowpass_poses",
     "read_bop_scene_gt",
@@ -80,6 +95,7 @@ __all__ = [
     "read_tum",
     "remove_position_drift",
     "resample_uniform",
+    "resolve_hand_motion",
     "sample_at_rate",
     "speed_statistics",
     "write_trajectory_csv",
