@@ -15,6 +15,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import cast
 
 import cv2
 import numpy as np
@@ -102,7 +103,7 @@ def _contours(mask: Bool) -> Sequence[NDArray[np.int32]]:
     contours, _ = cv2.findContours(
         mask.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE
     )
-    return contours
+    return cast(Sequence[NDArray[np.int32]], contours)  # cv2 types them as any int/float array
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -206,7 +207,7 @@ class VideoWriter:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             code = "mp4v" if self.path.suffix.lower() == ".mp4" else "MJPG"
             self._writer = cv2.VideoWriter(
-                str(self.path), cv2.VideoWriter_fourcc(*code), self.fps, (w, h)
+                str(self.path), cv2.VideoWriter.fourcc(*code), self.fps, (w, h)
             )
             if not self._writer.isOpened():
                 raise ConfigError(

@@ -22,6 +22,7 @@ import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -71,7 +72,7 @@ def _nice_number(x: float, *, integer: bool = False) -> float:
     fraction = x / 10**exponent
     choices = (1.0, 2.0, 5.0) if integer else (1.0, 2.0, 2.5, 5.0)
     nice = next((n for n in choices if fraction <= n * (1 + 1e-12)), 10.0)
-    return nice * 10**exponent
+    return float(nice * 10**exponent)
 
 
 def nice_ticks(lo: float, hi: float, *, max_ticks: int = 6, integer: bool = False) -> F64:
@@ -118,7 +119,9 @@ def _text_size(text: str, scale: float) -> tuple[int, int]:
     return w, h + baseline
 
 
-def _put_text(img: U8, text: str, org: tuple[int, int], scale: float, color=_BLACK) -> None:
+def _put_text(
+    img: U8, text: str, org: tuple[int, int], scale: float, color: tuple[int, int, int] = _BLACK
+) -> None:
     cv2.putText(img, text, org, _FONT, scale, color, 1, cv2.LINE_AA)
 
 
@@ -294,7 +297,9 @@ class LinePlot:
 
     # ----------------------------------------------------------------------- drawing
     @staticmethod
-    def _draw_marker(img: U8, u: float, v: float, marker: str, color, size: int = 4) -> None:
+    def _draw_marker(
+        img: U8, u: float, v: float, marker: str, color: tuple[int, int, int], size: int = 4
+    ) -> None:
         c = (_fixed(u), _fixed(v))
         s = size << _SHIFT
         if marker == "o":
@@ -414,11 +419,11 @@ class LinePlot:
         area = img[top : bottom + 1, left : right + 1].copy()
         for e in self._events:
             for x in e.x:
-                u = float(self.data_to_px(x, y0)[0]) - left
+                u_area = float(self.data_to_px(x, y0)[0]) - left
                 cv2.line(
                     area,
-                    (_fixed(u), 0),
-                    (_fixed(u), _fixed(bottom - top)),
+                    (_fixed(u_area), 0),
+                    (_fixed(u_area), _fixed(bottom - top)),
                     e.color,
                     1,
                     cv2.LINE_AA,
@@ -437,7 +442,7 @@ class LinePlot:
             _put_text(img, self.x_label, ((left + right - tw) // 2, self.height_px - 8), scale)
         if self.y_label:
             tw, th = _text_size(self.y_label, scale)
-            label = np.full((th + 4, tw + 4, 3), 255, dtype=np.uint8)
+            label: NDArray[Any] = np.full((th + 4, tw + 4, 3), 255, dtype=np.uint8)
             _put_text(label, self.y_label, (2, th - 2), scale)
             label = cv2.rotate(label, cv2.ROTATE_90_COUNTERCLOCKWISE)
             lh, lw = label.shape[:2]
