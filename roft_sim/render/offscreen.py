@@ -206,7 +206,8 @@ class OffscreenRenderer:
             if g.segid >= 0 and g.objtype == geom_type:
                 lut[g.segid + 1] = g.objid
         segid = np.where(segid <= n, segid, 0)
-        return lut[segid]
+        labels: NDArray[np.int32] = lut[segid]
+        return labels
 
     def close(self) -> None:
         """Frees the OpenGL resources (idempotent)."""
