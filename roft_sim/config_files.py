@@ -79,7 +79,8 @@ def dataclass_from_mapping(cls: type[T], data: Mapping[str, Any], *, where: str 
     Raises:
         ConfigError: unknown key, missing key, wrong type or a value rejected by the class.
     """
-    return _convert(cls, data, where)
+    built: T = _convert(cls, data, where)
+    return built
 
 
 def _field_path(where: str, key: str | int) -> str:
@@ -142,7 +143,7 @@ def _convert(tp: Any, value: Any, where: str) -> Any:  # noqa: C901 - one branch
         if value is None and type(None) in args:
             return None
         options = [a for a in args if a is not type(None)]
-        dc_options = [a for a in options if dataclasses.is_dataclass(a)]
+        dc_options: list[Any] = [a for a in options if dataclasses.is_dataclass(a)]
         if dc_options and isinstance(value, Mapping):
             return _convert_tagged_union(dc_options, value, where)
         if len(options) == 1:  # Optional[X]: keep X's own message (it says what is expected)
@@ -186,8 +187,8 @@ def _convert(tp: Any, value: Any, where: str) -> Any:  # noqa: C901 - one branch
         try:
             return tp(value)
         except ValueError:
-            allowed = ", ".join(repr(m.value) for m in tp)
-            raise ConfigError(f"{where}: got {value!r}, expected one of {allowed}") from None
+            members = ", ".join(repr(m.value) for m in tp)
+            raise ConfigError(f"{where}: got {value!r}, expected one of {members}") from None
     if origin in (tuple, list):
         if not isinstance(value, list | tuple):
             raise ConfigError(f"{where}: expected a list, got {value!r}")

@@ -96,7 +96,7 @@ class FlowField:
         """
         rows = np.asarray(v_px) // self.grid_px
         cols = np.asarray(u_px) // self.grid_px
-        out = self.flow_px[rows, cols].astype(np.float64)
+        out: F64 = self.flow_px[rows, cols].astype(np.float64)
         if self.valid is not None:
             out[~self.valid[rows, cols]] = np.nan
         return out
@@ -250,8 +250,8 @@ class Estimate:
             v_obj_mps=np.zeros(3),
             w_radps=np.zeros(3),
             valid=False,
-            **kwargs,
-        )  # type: ignore[arg-type]
+            **kwargs,  # type: ignore[arg-type]  # the caller's keywords are Estimate fields
+        )
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

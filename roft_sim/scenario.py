@@ -220,7 +220,8 @@ def load_scenario(path: str | Path) -> Scenario:
     trajectory = scenario.trajectory
     traj_path = getattr(trajectory, "path", None)
     if isinstance(traj_path, Path) and not traj_path.is_absolute():
-        trajectory = dataclasses.replace(trajectory, path=base_dir / traj_path)
+        # mypy types replace() on a union of dataclasses with the meet of the field types (Never)
+        trajectory = dataclasses.replace(trajectory, path=base_dir / traj_path)  # type: ignore[arg-type]
     if isinstance(trajectory, HandMotionConfig):
         trajectory = trajectory.with_base_dir(base_dir)
     camera = scenario.camera

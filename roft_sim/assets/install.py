@@ -106,7 +106,8 @@ def _check_member_name(archive: Path, name: str) -> None:
 
 
 def _tar_members(archive: Path, tar: tarfile.TarFile) -> list[tarfile.TarInfo]:
-    members, total = [], 0
+    members: list[tarfile.TarInfo] = []
+    total = 0
     for member in tar:  # reading every header also detects truncation early
         _check_member_name(archive, member.name)
         if member.issym() or member.islnk():
@@ -137,7 +138,8 @@ def _check_unpacked_size(archive: Path, members_before: int, total_bytes: int) -
 
 
 def _zip_members(archive: Path, zf: zipfile.ZipFile) -> list[zipfile.ZipInfo]:
-    members, total = [], 0
+    members: list[zipfile.ZipInfo] = []
+    total = 0
     for info in zf.infolist():
         _check_member_name(archive, info.filename)
         mode = info.external_attr >> 16
@@ -172,11 +174,11 @@ def safe_extract(archive: Path, destination: Path) -> None:
                     zf.extract(info, destination)
         elif tarfile.is_tarfile(archive):
             with tarfile.open(archive, "r:*") as tar:
-                members = _tar_members(archive, tar)
+                tar_members = _tar_members(archive, tar)
                 if hasattr(tarfile, "data_filter"):  # Python >= 3.11.4: a second safety net
-                    tar.extractall(destination, members=members, filter="data")
+                    tar.extractall(destination, members=tar_members, filter="data")
                 else:  # pragma: no cover - members were vetted above
-                    tar.extractall(destination, members=members)
+                    tar.extractall(destination, members=tar_members)
         else:
             raise DatasetFormatError(
                 f"{located(archive)} is not a tar or zip archive (truncated, corrupt or another "

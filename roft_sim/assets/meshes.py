@@ -94,7 +94,8 @@ class TexturedMesh:
         uv = np.asarray(uv, dtype=np.float64)
         col = np.clip(np.floor(uv[:, 0] * w), 0, w - 1).astype(np.intp)
         row = np.clip(np.floor((1.0 - uv[:, 1]) * h), 0, h - 1).astype(np.intp)
-        return self.texture_rgb[row, col]
+        colours: U8 = self.texture_rgb[row, col]
+        return colours
 
 
 def freeze_arrays(*arrays: np.ndarray) -> None:
@@ -152,7 +153,8 @@ def sample_surface_points(vertices_m: F64, faces: I64, count: int, *, seed: int)
     face = np.minimum(face, len(area) - 1)
     s, r = np.sqrt(u[1]), u[2]
     a, b, c = tri[face, 0], tri[face, 1], tri[face, 2]
-    return (1.0 - s)[:, None] * a + (s * (1.0 - r))[:, None] * b + (s * r)[:, None] * c
+    points: F64 = (1.0 - s)[:, None] * a + (s * (1.0 - r))[:, None] * b + (s * r)[:, None] * c
+    return points
 
 
 def read_texture_image(path: Path, *, max_px: int) -> U8:

@@ -78,8 +78,9 @@ def _fbm(
     return total / np.float32(norm)
 
 
-def _luminance(rgb: NDArray) -> NDArray:
-    return 0.299 * rgb[..., 0] + 0.587 * rgb[..., 1] + 0.114 * rgb[..., 2]
+def _luminance(rgb: NDArray[np.floating]) -> NDArray[np.floating]:
+    lum: NDArray[np.floating] = 0.299 * rgb[..., 0] + 0.587 * rgb[..., 1] + 0.114 * rgb[..., 2]
+    return lum
 
 
 def _random_text(rng: np.random.Generator, n_chars: int) -> str:
@@ -93,7 +94,7 @@ def _draw_text_line(
     origin_px: tuple[float, float],
     cap_height_px: float,
     length_px: float,
-    color: tuple[float, float, float],
+    color: tuple[float, ...],
 ) -> None:
     """Draws words of random glyphs along a horizontal line, clipped to ``length_px``."""
     font = _FONTS[int(rng.integers(0, len(_FONTS)))]
@@ -219,4 +220,5 @@ def procedural_texture(
     image *= (1.0 + 0.25 * shade)[..., None]
     image += (0.12 * fine)[..., None]
     image += rng.uniform(-0.03, 0.03, size=(h, w, 1)).astype(np.float32)
-    return np.clip(np.rint(image * 255.0), 0, 255).astype(np.uint8)
+    texture: U8 = np.clip(np.rint(image * 255.0), 0, 255).astype(np.uint8)
+    return texture

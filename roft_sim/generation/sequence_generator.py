@@ -28,7 +28,7 @@ and split among workers in any way, with byte-identical results on the same rend
 from __future__ import annotations
 
 from collections.abc import Iterator
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -151,7 +151,7 @@ class _RenderedGroundTruthFlow:
             pair.memo["gt"] = ground_truth_flow(
                 pair.frame(from_k), pair.frame(to_k), pair.intrinsics
             )
-        return pair.memo["gt"]
+        return cast(FlowField, pair.memo["gt"])
 
 
 class _NoisyRenderedGroundTruthFlow:
@@ -180,7 +180,7 @@ class _Memoised:
     def flow(self, pair: Any, from_k: int, to_k: int) -> FlowField | None:
         if self.key not in pair.memo:
             pair.memo[self.key] = self.inner.flow(pair, from_k, to_k)
-        return pair.memo[self.key]
+        return cast("FlowField | None", pair.memo[self.key])
 
 
 def _flow_source(spec: FlowSourceSpec, config: FlowSetConfig, seed: int) -> FlowSource:
@@ -285,7 +285,8 @@ class SequenceGenerator:
                 self.scenario.name, self.scenario.intrinsics, self.n_frames, [previous, current]
             )
             for name, source in self._flow_sources.items():
-                flow = source.flow(pair, k - 1, k)
+                # a _FramePair has the part of the Sequence protocol that flow sources read
+                flow = source.flow(pair, k - 1, k)  # type: ignore[arg-type]
                 if flow is None:  # pragma: no cover - our sources always give a flow
                     raise RuntimeError(f"flow source of set {name!r} gave no flow for frame {k}")
                 flows[name] = flow
@@ -317,7 +318,9 @@ class SequenceGenerator:
 
     def _full_silhouette(self, frame: RenderedFrame) -> Bool:
         assert self._silhouettes is not None
-        depth = self._silhouettes.render_depth(frame.T_cam_obj, self.scenario.intrinsics)[0]
+        depth: NDArray[np.float32] = self._silhouettes.render_depth(
+            frame.T_cam_obj, self.scenario.intrinsics
+        )[0]
         return depth > 0
 
     def _pose_detection(self, k: int, vis_k: float) -> F64 | None:

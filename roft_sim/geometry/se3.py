@@ -96,7 +96,8 @@ def transform_points(T_a_b: ArrayLike, p_b: ArrayLike) -> F64:
     p = np.asarray(p_b, dtype=np.float64)
     if T.ndim == 2:
         return p @ T[:3, :3].T + T[:3, 3]
-    return np.einsum("...ij,...j->...i", T[..., :3, :3], p) + T[..., :3, 3]
+    p_a: F64 = np.einsum("...ij,...j->...i", T[..., :3, :3], p) + T[..., :3, 3]
+    return p_a
 
 
 def v_o_from_v_obj(v_obj: ArrayLike, w: ArrayLike, t_cam_obj: ArrayLike) -> F64:

@@ -70,7 +70,7 @@ def as_quat_wxyz(q: ArrayLike, *, normalize: bool = True) -> F64:
         )
     if not np.isfinite(q).all():
         raise ValueError("quaternion contains NaN or inf")
-    n = np.linalg.norm(q, axis=-1, keepdims=True)
+    n: F64 = np.linalg.norm(q, axis=-1, keepdims=True)
     if (n < 1e-12).any():
         raise ValueError("quaternion has zero norm")
     if normalize:
@@ -135,7 +135,8 @@ def quat_multiply(q1: ArrayLike, q2: ArrayLike) -> F64:
 def quat_conjugate(q: ArrayLike) -> F64:
     """Conjugate (the inverse of a unit quaternion), ``(..., 4)``."""
     q = np.asarray(q, dtype=np.float64)
-    return q * np.array([1.0, -1.0, -1.0, -1.0])
+    conjugate: F64 = q * np.array([1.0, -1.0, -1.0, -1.0])
+    return conjugate
 
 
 def quat_rotate(q: ArrayLike, p: ArrayLike) -> F64:
@@ -235,7 +236,7 @@ def rotvec_from_quat(q: ArrayLike) -> F64:
     safe_s = np.where(small, 1.0, s)
     safe_w = np.where(small, w, 1.0)  # w ~ 1 wherever s is small
     # angle / s -> 2/w * (1 - s^2/(3 w^2)) for small s
-    k = np.where(small, 2.0 / safe_w * (1.0 - s**2 / (3.0 * safe_w**2)), angle / safe_s)
+    k: F64 = np.where(small, 2.0 / safe_w * (1.0 - s**2 / (3.0 * safe_w**2)), angle / safe_s)
     return k * v
 
 
@@ -303,7 +304,8 @@ def quat_angle(q1: ArrayLike, q2: ArrayLike) -> F64:
     half the digits near 0.
     """
     d = quat_multiply(quat_conjugate(as_quat_wxyz(q1)), as_quat_wxyz(q2))
-    return 2.0 * np.arctan2(np.linalg.norm(d[..., 1:], axis=-1), np.abs(d[..., 0]))
+    angle: F64 = 2.0 * np.arctan2(np.linalg.norm(d[..., 1:], axis=-1), np.abs(d[..., 0]))
+    return angle
 
 
 def rotation_angle(R1: ArrayLike, R2: ArrayLike) -> F64:

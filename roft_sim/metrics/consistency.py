@@ -123,7 +123,8 @@ def mahalanobis_squared(errors: ArrayLike, covariances: ArrayLike) -> F64:
             f"covariance at index {i} is not positive definite (min eigenvalue {eig.min():.3e})"
         ) from None
     y = np.linalg.solve(L, e[..., None])[..., 0]
-    return np.sum(y * y, axis=-1)
+    d2: F64 = np.sum(y * y, axis=-1)
+    return d2
 
 
 def nees(errors: ArrayLike, covariances: ArrayLike) -> F64:

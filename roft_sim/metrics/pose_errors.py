@@ -109,7 +109,7 @@ def adds_distances(T_est: ArrayLike, T_gt: ArrayLike, model_points_m: ArrayLike)
         y = pts @ T_gt[n, :3, :3].T + T_gt[n, :3, 3]
         query = (y - T_est[n, :3, 3]) @ T_est[n, :3, :3]  # R_est^T (y - t_est), row-wise
         dist, _ = tree.query(query, k=1)
-        out[n] = dist.mean()
+        out[n] = np.mean(dist)
     return out
 
 

@@ -168,7 +168,8 @@ class SequenceMetrics:
     @property
     def t_err_norm_cm(self) -> F64:
         """(F,) position error norm [cm]."""
-        return np.linalg.norm(self.t_err_cm, axis=1)
+        norm: F64 = np.linalg.norm(self.t_err_cm, axis=1)
+        return norm
 
     def summary(self) -> dict[str, Any]:
         """Scalars for ``metrics.json``: NaN becomes None; step times as ``time_*_ms``."""
@@ -294,6 +295,8 @@ def evaluate_sequence(
     v_err = np.full((f, 3), np.nan)
     w_err = np.full((f, 3), np.nan)
     if v_obj_gt is not None and w_gt is not None:
+        v_hat: F64 | None
+        w_hat: F64 | None
         if twist is not None:
             w_hat = twist[from_k, 3:]
             v_hat = v_obj_from_v_o(twist[from_k, :3], w_hat, Tg[:, :3, 3])

@@ -119,7 +119,7 @@ class RenderedFrame:
     @property
     def shape(self) -> tuple[int, int]:
         """Image shape (H, W)."""
-        return self.depth_m.shape  # type: ignore[return-value]
+        return self.depth_m.shape
 
 
 def body_motions(earlier: RenderedFrame, later: RenderedFrame) -> F64:

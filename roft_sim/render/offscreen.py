@@ -216,7 +216,8 @@ class OffscreenRenderer:
         code = id_colour.astype(np.int32)
         segid = code[..., 0] | (code[..., 1] << 8) | (code[..., 2] << 16)
         segid = np.where(segid <= n, segid, 0)
-        return lut[segid]
+        labels: NDArray[np.int32] = lut[segid]
+        return labels
 
     def close(self) -> None:
         """Frees the OpenGL resources (idempotent)."""

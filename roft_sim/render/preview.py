@@ -41,7 +41,7 @@ def flow_to_rgb(flow: FlowField, max_px: float) -> U8:
     hsv[..., 0] = (angle / 2).astype(np.uint8)  # OpenCV hue: 0..179
     hsv[..., 1] = 255
     hsv[..., 2] = np.clip(magnitude / max(max_px, 1e-9) * 255, 0, 255).astype(np.uint8)
-    rgb = cv2.cvtColor(hsv, cv2.COLOR_HSV2RGB)
+    rgb: NDArray[Any] = cv2.cvtColor(hsv, cv2.COLOR_HSV2RGB)  # uint8, as hsv
     if flow.valid is not None:
         rgb[~flow.valid] = 0
     return rgb
@@ -51,7 +51,7 @@ def depth_to_rgb(depth_m: NDArray[np.float32], near_m: float, far_m: float) -> U
     """Depth ``(H, W)`` [m] coloured with the TURBO map over ``[near_m, far_m]`` (near = blue);
     no measurement (0) is black."""
     t = np.clip((depth_m - near_m) / max(far_m - near_m, 1e-9), 0, 1)
-    rgb = cv2.applyColorMap((t * 255).astype(np.uint8), cv2.COLORMAP_TURBO)[..., ::-1].copy()
+    rgb: U8 = cv2.applyColorMap((t * 255).astype(np.uint8), cv2.COLORMAP_TURBO)[..., ::-1].copy()
     rgb[depth_m <= 0] = 0
     return rgb
 
@@ -95,7 +95,7 @@ def preview_panel(
     h, w = frame.shape
     depth = depth_to_rgb(frame.depth_m, *depth_range_m)
     flow_rgb = flow_to_rgb(flow, flow_max_px) if flow is not None else np.zeros((h, w, 3), np.uint8)
-    panels = [frame.rgb.copy(), depth, mask_to_rgb(frame), flow_rgb]
+    panels: list[NDArray[Any]] = [frame.rgb.copy(), depth, mask_to_rgb(frame), flow_rgb]
     if scale != 1.0:
         size = (max(1, round(w * scale)), max(1, round(h * scale)))
         panels = [cv2.resize(p, size, interpolation=cv2.INTER_AREA) for p in panels]

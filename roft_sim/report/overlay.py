@@ -98,7 +98,7 @@ def _contours(mask: Bool) -> Sequence[NDArray[np.int32]]:
     contours, _ = cv2.findContours(
         mask.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE
     )
-    return contours
+    return cast(Sequence[NDArray[np.int32]], contours)  # cv2 types them as any int/float array
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

@@ -72,8 +72,11 @@ class MeshLike(Protocol):
     ``roft_sim.records.ObjectModel``): vertices and faces, optionally ``uv`` and
     ``texture_rgb``."""
 
-    vertices_m: F64
-    faces: I64
+    @property
+    def vertices_m(self) -> F64: ...
+
+    @property
+    def faces(self) -> I64: ...
 
 
 @dataclass(frozen=True, slots=True)

@@ -59,7 +59,8 @@ def so3_left_jacobian(r: ArrayLike) -> F64:
     t = np.where(small, 1.0, theta)
     a = np.where(small, 0.5 - theta**2 / 24.0, (1.0 - np.cos(t)) / t**2)
     b = np.where(small, 1.0 / 6.0 - theta**2 / 120.0, (t - np.sin(t)) / t**3)
-    return np.eye(3) + a * K + b * (K @ K)
+    V: F64 = np.eye(3) + a * K + b * (K @ K)
+    return V
 
 
 def camera_poses(config: CameraMotionConfig | None, t_s: ArrayLike) -> CameraPoses:

@@ -48,7 +48,7 @@ def _fractal(size_px: int, rng: np.random.Generator, scales_px: tuple[float, ...
     total = np.zeros((size_px, size_px))
     for i, s in enumerate(scales_px):
         total += 0.6**i * periodic_noise(size_px, rng, sigma_px=s)
-    return total / total.std()
+    return total / float(total.std())
 
 
 def _palette(values: F64, colours: F64) -> F64:
@@ -57,7 +57,8 @@ def _palette(values: F64, colours: F64) -> F64:
     t = np.clip((values - lo) / max(hi - lo, 1e-12), 0, 1) * (len(colours) - 1)
     i = np.minimum(t.astype(int), len(colours) - 2)
     f = (t - i)[..., None]
-    return colours[i] * (1 - f) + colours[i + 1] * f
+    rgb: F64 = colours[i] * (1 - f) + colours[i + 1] * f
+    return rgb
 
 
 def _wrapped_offsets(size_px: int) -> list[tuple[int, int]]:
@@ -103,7 +104,8 @@ def _fabric(size: int, rng: np.random.Generator) -> F64:
         a * (0.5 + 0.5 * stripes_x[..., None]) + b * (0.5 + 0.5 * stripes_y[..., None]) + c * 0.5
     ) / 2.0
     img *= 1 + 0.18 * weave[..., None]
-    return img * (1 + 0.1 * _fractal(size, rng, (size / 20, 3.0))[..., None])
+    shaded: F64 = img * (1 + 0.1 * _fractal(size, rng, (size / 20, 3.0))[..., None])
+    return shaded
 
 
 def _posters(size: int, rng: np.random.Generator) -> F64:
@@ -152,4 +154,5 @@ def procedural_texture(style: str, size_px: int, rng: np.random.Generator) -> U8
     img = _STYLES[style](size_px, rng)
     grain = periodic_noise(size_px, rng, sigma_px=0.6)
     img = img * (1 + 0.06 * grain[..., None])
-    return np.clip(np.rint(img * 255), 0, 255).astype(np.uint8)
+    texture: U8 = np.clip(np.rint(img * 255), 0, 255).astype(np.uint8)
+    return texture

@@ -98,12 +98,14 @@ class TrajectorySample:
     @property
     def linear_speed_mps(self) -> F64:
         """(N,) speed of the object origin [m/s]."""
-        return np.linalg.norm(self.v_mps, axis=-1)
+        speed: F64 = np.linalg.norm(self.v_mps, axis=-1)
+        return speed
 
     @property
     def angular_speed_radps(self) -> F64:
         """(N,) magnitude of the angular velocity [rad/s]."""
-        return np.linalg.norm(self.w_radps, axis=-1)
+        speed: F64 = np.linalg.norm(self.w_radps, axis=-1)
+        return speed
 
     def as_pose_track(self) -> PoseTrack:
         """The poses and velocities as a :class:`roft_sim.records.PoseTrack`.

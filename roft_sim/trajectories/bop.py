@@ -11,8 +11,10 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from roft_sim.errors import ConfigError, DatasetFormatError, located
 from roft_sim.geometry.se3 import transform_from_rt
@@ -32,9 +34,10 @@ _HELP = (
 )
 
 
-def _orthonormalise(R: np.ndarray) -> np.ndarray:
+def _orthonormalise(R: NDArray[np.float64]) -> NDArray[np.float64]:
     u, _, vt = np.linalg.svd(R)
-    return u @ vt
+    rotation: NDArray[np.float64] = u @ vt
+    return rotation
 
 
 def read_bop_scene_gt(
@@ -77,7 +80,7 @@ def read_bop_scene_gt(
         ) from None
     if not isinstance(data, dict):
         raise DatasetFormatError(f"{located(path)}: top level is not an object; {_HELP}")
-    entries: dict[int, list] = {}
+    entries: dict[int, list[Any]] = {}
     for key, listed in data.items():
         if not str(key).isdigit() or not isinstance(listed, list):
             raise DatasetFormatError(

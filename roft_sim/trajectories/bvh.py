@@ -20,7 +20,7 @@ from __future__ import annotations
 import difflib
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -205,7 +205,7 @@ class _Tokens:
 
 
 def _parse_joint(
-    tokens: _Tokens, name: str, parent: int, joints: list[dict], column: list[int]
+    tokens: _Tokens, name: str, parent: int, joints: list[dict[str, Any]], column: list[int]
 ) -> None:
     path = tokens.path
     tokens.expect("{")
@@ -274,7 +274,7 @@ def _parse_joint(
             )
 
 
-def _longest_chain(joints: list[dict]) -> float:
+def _longest_chain(joints: list[dict[str, Any]]) -> float:
     depth = np.zeros(len(joints))
     best = 0.0
     for i, j in enumerate(joints):
@@ -323,7 +323,7 @@ def read_bvh(path: str | Path, *, unit: BvhUnit = "auto") -> BvhMotion:
     tokens.expect("HIERARCHY")
     tokens.expect("ROOT")
     root, _ = tokens.next("root name")
-    joints: list[dict] = []
+    joints: list[dict[str, Any]] = []
     column = [0]
     _parse_joint(tokens, root, -1, joints, column)
     if tokens.pos != len(tokens.items):
@@ -447,7 +447,7 @@ def bvh_pose_samples(
             f"least {MIN_SPLINE_SAMPLES}"
         )
     return PoseSamples(
-        t_s=np.arange(motion.num_frames) * motion.frame_time_s,
+        t_s=np.arange(motion.num_frames, dtype=np.float64) * motion.frame_time_s,
         T_ref_obj=T,
         source=source,
         up_ref=np.array([0.0, 1.0, 0.0]),

@@ -308,8 +308,9 @@ def fit_camera_anchor(
     depth_best, _ = _best_stab(region.near_m - q[:, 2], region.far_m - q[:, 2])
     lo = region.near_m - q[:, 2].max()
     hi = region.far_m - q[:, 2].min()
-    candidates = np.concatenate(
-        [np.linspace(min(lo, hi), max(lo, hi), num_depths), [z_mid - robust_mid]]
+    # the list of arrays and lists is joined to list[object] by mypy
+    candidates: F64 = np.concatenate(
+        [np.linspace(min(lo, hi), max(lo, hi), num_depths), [z_mid - robust_mid]]  # type: ignore[arg-type]
         + ([[depth_best]] if np.isfinite(depth_best) else [])
     )
     best: tuple[int, float, F64] | None = None

@@ -149,7 +149,7 @@ def remove_position_drift(samples: PoseSamples, window_s: float) -> PoseSamples:
 def _continuous_quats(q: F64) -> F64:
     """Flips signs so that consecutive quaternions ``(N, 4)`` have a non-negative dot product."""
     dots = np.sum(q[1:] * q[:-1], axis=-1)
-    flips = np.concatenate([[1.0], np.cumprod(np.where(dots < 0.0, -1.0, 1.0))])
+    flips: F64 = np.concatenate([[1.0], np.cumprod(np.where(dots < 0.0, -1.0, 1.0))])
     return q * flips[:, None]
 
 

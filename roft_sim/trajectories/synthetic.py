@@ -42,7 +42,7 @@ __all__ = [
 MINIMUM_JERK_PEAK_FACTOR = 1.875
 """Peak of ``ds/dtau`` of the minimum-jerk profile: peak speed = 1.875 distance / duration."""
 
-MINIMUM_JERK_ACCELERATION_FACTOR = 10.0 / np.sqrt(3.0) / MINIMUM_JERK_PEAK_FACTOR
+MINIMUM_JERK_ACCELERATION_FACTOR: float = 10.0 / np.sqrt(3.0) / MINIMUM_JERK_PEAK_FACTOR
 """Peak acceleration = 3.079 peak speed / duration for a minimum-jerk segment (``max d2s/dtau2``
 is ``10 / sqrt(3)`` at ``tau = (3 - sqrt(3)) / 6``)."""
 
@@ -176,7 +176,7 @@ class SyntheticMotionConfig:
         c = MINIMUM_JERK_ACCELERATION_FACTOR
         return c * max(
             linear_speed_mps / self.peak_linear_acceleration_mps2,
-            angular_speed_radps / np.radians(self.peak_angular_acceleration_dps2),
+            angular_speed_radps / float(np.radians(self.peak_angular_acceleration_dps2)),
         )
 
 
@@ -321,7 +321,8 @@ def _move_inside(
         dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
         ok = region.contains(p + d * dirs)
         if ok.any():
-            return d * dirs[int(np.argmax(ok))]
+            step: F64 = d * dirs[int(np.argmax(ok))]
+            return step
         d *= 0.7
     return None
 

@@ -126,7 +126,8 @@ def _read_rows(path: Path) -> tuple[np.ndarray, list[int]]:
             f"{located(path, header_line)}: header {header[:120]!r} is not a trajectory CSV "
             f"header; {_HELP}"
         )
-    rows, numbers = [], []
+    rows: list[list[float]] = []
+    numbers: list[int] = []
     for number, line in numbered[1:]:
         fields = line.split(",")
         if len(fields) != len(names):

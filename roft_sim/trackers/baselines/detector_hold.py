@@ -16,7 +16,7 @@ zero). The estimate is invalid until the first pose arrives, unless ``reset`` go
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, TypedDict
 
 import numpy as np
 from numpy.typing import NDArray
@@ -43,6 +43,11 @@ class _Held:
     capture_k: int
     T_cam_obj: F64
     detection_id: int
+
+
+class _PoseIds(TypedDict):
+    accepted_pose_ids: tuple[int, ...]
+    dropped_pose_ids: tuple[int, ...]
 
 
 class DetectorHoldTracker:
@@ -78,7 +83,7 @@ class DetectorHoldTracker:
                 continue
             self._previous, self._held = self._held, _Held(det.capture_k, T, det.detection_id)
             accepted.append(det.detection_id)
-        ids = {"accepted_pose_ids": tuple(accepted), "dropped_pose_ids": tuple(dropped)}
+        ids: _PoseIds = {"accepted_pose_ids": tuple(accepted), "dropped_pose_ids": tuple(dropped)}
         if self._held is None:
             if self._initial is None:
                 return Estimate.invalid(observation.k, **ids)

@@ -33,7 +33,9 @@ __all__ = [
 Vec3 = tuple[float, float, float]
 
 
-def _check_positive(owner: str, name: str, values: tuple[float, ...], *, allow_zero=False) -> None:
+def _check_positive(
+    owner: str, name: str, values: tuple[float, ...], *, allow_zero: bool = False
+) -> None:
     for v in values:
         bad = not math.isfinite(v) or v < 0 or (v == 0 and not allow_zero)
         if bad:

@@ -66,9 +66,9 @@ class PixelSet:
     @classmethod
     def from_index(cls, index: NDArray[np.integer], shape: tuple[int, int]) -> PixelSet:
         """From row-major linear indices (sorted and made unique here)."""
-        index = np.unique(np.asarray(index, dtype=np.int64))
-        v = index // shape[1]
-        return cls(index, index - v * shape[1], v, shape)
+        unique: I64 = np.unique(np.asarray(index, dtype=np.int64))
+        v = unique // shape[1]
+        return cls(unique, unique - v * shape[1], v, shape)
 
     @classmethod
     def empty(cls, shape: tuple[int, int]) -> PixelSet:

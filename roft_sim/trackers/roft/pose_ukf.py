@@ -76,7 +76,8 @@ def unscented_weights(n: int, alpha: float, beta: float, kappa: float) -> tuple[
 def psd_sqrt(M: F64) -> F64:
     """A square root ``A``, ``A A^T = M``, of a symmetric PSD matrix (eigenvalues clipped at 0)."""
     s, U = np.linalg.eigh(0.5 * (M + M.T))
-    return U * np.sqrt(np.clip(s, 0.0, None))
+    A: F64 = U * np.sqrt(np.clip(s, 0.0, None))
+    return A
 
 
 def markley_mean(q: F64, weights: F64) -> F64:
@@ -84,7 +85,7 @@ def markley_mean(q: F64, weights: F64) -> F64:
     of ``sum_i w_i q_i q_i^T`` (sign-invariant), returned with w >= 0."""
     M = (q * weights[:, None]).T @ q
     _, vecs = np.linalg.eigh(M)
-    mean = vecs[:, -1]
+    mean: F64 = vecs[:, -1]
     mean = mean / np.linalg.norm(mean)
     return -mean if mean[0] < 0 else mean
 
@@ -129,7 +130,7 @@ def _qlog(q: F64) -> F64:
     angle = np.minimum(2.0 * np.arctan2(s, w), np.pi)
     small = s < 1e-6
     safe_w = np.where(small, w, 1.0)
-    k = np.where(
+    k: F64 = np.where(
         small, 2.0 / safe_w * (1.0 - s**2 / (3.0 * safe_w**2)), angle / np.where(small, 1.0, s)
     )
     return k[:, None] * vec

@@ -18,7 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from roft_sim.geometry.camera import CameraIntrinsics
 from roft_sim.records import FlowField
@@ -56,7 +56,9 @@ class FlowMeasurement:
         return int(self.y_px.shape[0])
 
 
-def flow_jacobian(intrinsics: CameraIntrinsics, u_px: F64, v_px: F64, z_m: F64, dt_s: float) -> F64:
+def flow_jacobian(
+    intrinsics: CameraIntrinsics, u_px: ArrayLike, v_px: ArrayLike, z_m: ArrayLike, dt_s: float
+) -> F64:
     """``dt * J`` ``(N, 2, 6)``: flow [px] per spatial twist (v_o [m/s], w [rad/s]).
 
     Object-motion form (paper eq. 9): the rows are the time derivatives of ``u = fx X/Z + cx``,
@@ -132,7 +134,7 @@ def laplacian_likelihood(innovation_px: F64, pairs: str = "correct") -> F64:
     if not b > _MIN_SPREAD:
         return np.ones(e.shape[0])
     lik = np.maximum(np.exp(-np.abs(norms - mu) / b) / (2.0 * b), _LIKELIHOOD_FLOOR)
-    return lik / lik.max()
+    return lik / float(lik.max())
 
 
 class VelocityKF:
