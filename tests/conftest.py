@@ -28,6 +28,11 @@ settings.load_profile(CI_PROFILE)
 def pytest_addoption(parser: pytest.Parser) -> None:
     parser.addoption("--run-slow", action="store_true", help="also run tests marked slow")
     parser.addoption(
+        "--update-golden",
+        action="store_true",
+        help="rewrite the golden renderer images in tests/golden/<backend>/ instead of comparing",
+    )
+    parser.addoption(
         "--shared-dir",
         default=str(REPO_ROOT.parent / "shared"),
         help="folder with ycb/ and trajectories/ test data (default: ../shared beside the repo)",
