@@ -4,8 +4,9 @@
 - ``render`` tests are skipped, with the reason, when no offscreen OpenGL backend works.
 - Fixtures ``shared_ycb_dir`` and ``shared_trajectories_dir`` point at ``../shared/`` beside the
   repository and skip with the reason when it is absent. Override with ``--shared-dir``.
-- Hypothesis profiles: ``default`` (derandomised, CI-sized) and ``thorough`` (many more examples),
-  chosen with ``--hypothesis-profile=thorough``.
+- Hypothesis profiles: the ones ``roft_sim.testing.profiles`` ships to users, so the suite runs
+  under what it ships: ``roft-sim-ci`` by default (derandomised, 60 examples) and ``thorough``
+  (2000 examples) with ``--hypothesis-profile=thorough``.
 """
 
 from __future__ import annotations
@@ -14,28 +15,23 @@ import os
 from pathlib import Path
 
 import pytest
-from hypothesis import HealthCheck, settings
+from hypothesis import settings
+
+from roft_sim.testing.profiles import CI_PROFILE, register_hypothesis_profiles
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 
-settings.register_profile(
-    "default",
-    max_examples=60,
-    deadline=None,
-    derandomize=True,
-    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
-)
-settings.register_profile(
-    "thorough",
-    max_examples=2000,
-    deadline=None,
-    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
-)
-settings.load_profile("default")
+register_hypothesis_profiles()
+settings.load_profile(CI_PROFILE)
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
     parser.addoption("--run-slow", action="store_true", help="also run tests marked slow")
+    parser.addoption(
+        "--update-golden",
+        action="store_true",
+        help="rewrite the golden renderer images in tests/golden/<backend>/ instead of comparing",
+    )
     parser.addoption(
         "--shared-dir",
         default=str(REPO_ROOT.parent / "shared"),

@@ -72,16 +72,10 @@ __all__ = [
     "compose_faults",
 ]
 
-PoseFault = (
-    Rate
-    | BusyNetwork
-    | BernoulliDropout
-    | GilbertElliott
-    | Blackout
-    | TranslationJump
-    | RotationFlip
-    | WrongObject
-    | ClockSkew
+_DETECTION_SAMPLING_AND_LOSS = Rate | BusyNetwork | BernoulliDropout | GilbertElliott | Blackout
+"""The sampling and loss faults both detection streams accept."""
+_DETECTION_TIMING_AND_DELIVERY = (
+    ClockSkew
     | FixedDelay
     | UniformDelay
     | LogNormalDelay
@@ -90,26 +84,24 @@ PoseFault = (
     | Stale
     | Reorder
 )
+"""The stamp, delay and delivery faults both detection streams accept."""
+
+PoseFault = (
+    _DETECTION_SAMPLING_AND_LOSS
+    | TranslationJump
+    | RotationFlip
+    | WrongObject
+    | _DETECTION_TIMING_AND_DELIVERY
+)
 """Every fault a pose stream accepts."""
 MaskFault = (
-    Rate
-    | BusyNetwork
-    | BernoulliDropout
-    | GilbertElliott
-    | Blackout
+    _DETECTION_SAMPLING_AND_LOSS
     | MaskShift
     | MaskMorphology
     | EmptyMask
     | SpuriousBlobs
     | WrongFrameMask
-    | ClockSkew
-    | FixedDelay
-    | UniformDelay
-    | LogNormalDelay
-    | EmpiricalDelay
-    | Duplicate
-    | Stale
-    | Reorder
+    | _DETECTION_TIMING_AND_DELIVERY
 )
 """Every fault a mask stream accepts."""
 CameraFault = BernoulliDropout | GilbertElliott | Blackout | DepthHoles | DepthNoise
@@ -128,39 +120,38 @@ FirstResult = Literal["delayed", "undelayed", "undelayed_and_delayed"]
 """
 
 
-def _check_detection_faults(faults: tuple[Any, ...]) -> None:
-    sampling = [i for i, f in enumerate(faults) if f.stage == "sampling"]
-    if len(sampling) > 1:
-        kinds = ", ".join(f"faults[{i}] ({faults[i].kind})" for i in sampling)
-        raise ConfigError(
-            f"a stream takes at most one sampling fault (rate or busy), got {kinds}; keep one"
-        )
-
-
 @dataclass(frozen=True, slots=True, kw_only=True)
-class PoseStreamFaults:
-    """Faults of the pose-detection stream."""
+class _DetectionStreamFaults:
+    """The options every detection stream has; subclasses narrow the fault types."""
 
     first_result: FirstResult = "delayed"
     """How the first run's result is delivered (see :data:`FirstResult`)."""
+    faults: tuple[Any, ...] = ()
+    """The faults; composed by stage (docs/faults.md), listed order within a stage."""
+
+    def __post_init__(self) -> None:
+        sampling = [i for i, f in enumerate(self.faults) if f.stage == "sampling"]
+        if len(sampling) > 1:
+            kinds = ", ".join(f"faults[{i}] ({self.faults[i].kind})" for i in sampling)
+            raise ConfigError(
+                f"a stream takes at most one sampling fault (rate or busy), got {kinds}; keep one"
+            )
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class PoseStreamFaults(_DetectionStreamFaults):
+    """Faults of the pose-detection stream."""
+
     faults: tuple[PoseFault, ...] = ()
     """The faults; composed by stage (docs/faults.md), listed order within a stage."""
 
-    def __post_init__(self) -> None:
-        _check_detection_faults(self.faults)
-
 
 @dataclass(frozen=True, slots=True, kw_only=True)
-class MaskStreamFaults:
+class MaskStreamFaults(_DetectionStreamFaults):
     """Faults of the mask-detection stream."""
 
-    first_result: FirstResult = "delayed"
-    """How the first run's result is delivered (see :data:`FirstResult`)."""
     faults: tuple[MaskFault, ...] = ()
     """The faults; composed by stage (docs/faults.md), listed order within a stage."""
-
-    def __post_init__(self) -> None:
-        _check_detection_faults(self.faults)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

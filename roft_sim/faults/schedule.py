@@ -35,7 +35,7 @@ from __future__ import annotations
 import bisect
 import dataclasses
 import zlib
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -43,7 +43,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from roft_sim.errors import ConfigError
-from roft_sim.faults.config import FaultConfig, MaskStreamFaults, PoseStreamFaults
+from roft_sim.faults.config import FaultConfig, FirstResult, MaskStreamFaults, PoseStreamFaults
 from roft_sim.faults.delivery import apply_blackout_on_arrival
 from roft_sim.faults.events import (
     Corruption,
@@ -180,70 +180,89 @@ def _valid_for(spec: ValidSpec, captures: I64, n_frames: int, stream: str) -> Bo
     return arr[captures]
 
 
-def _schedule_stream(
-    stream: StreamName,
-    cfg: PoseStreamFaults | MaskStreamFaults,
-    n_frames: int,
-    fps: int,
-    root: np.random.SeedSequence,
-    valid_spec: ValidSpec,
-    ideal: bool,
-) -> tuple[tuple[DeliveryEvent, ...], tuple[DetectionRecord, ...]]:
-    faults = cfg.faults
-    rngs = _fault_rngs(root, stream, faults)
+def _fault_label(stream: StreamName, faults: Sequence[Any], i: int) -> str:
+    """``pose.faults[2] (bursts)``: where a fault sits, for the records' causes."""
+    return f"{stream}.faults[{i}] ({faults[i].kind})"
 
-    def label(i: int) -> str:
-        return f"{stream}.faults[{i}] ({faults[i].kind})"
 
-    timing_skipped = ideal  # "detector ideal": every frame, at its own frame, no delivery faults
-
-    # 1. sampling
+def _sample_runs(
+    faults: Sequence[Any], rngs: Sequence[np.random.Generator], n_frames: int, fps: int
+) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Stage 1, sampling: the capture frame of every network run and its processing delay
+    [frames] (every frame, no delay, without a sampling fault)."""
     captures = np.arange(n_frames, dtype=np.int64)
     delay = np.zeros(n_frames, dtype=np.int64)
-    if not timing_skipped:
-        for f, rng in zip(faults, rngs, strict=True):
-            if f.stage == "sampling":
-                captures, delay = f.sample(n_frames, fps, rng)
-    n_runs = captures.shape[0]
+    for f, rng in zip(faults, rngs, strict=True):
+        if f.stage == "sampling":
+            captures, delay = f.sample(n_frames, fps, rng)
+    return captures, delay
 
-    # 2. misses, 3. loss
-    valid = _valid_for(valid_spec, captures, n_frames, stream)
-    dropped_by: list[str | None] = [None] * n_runs
+
+def _lost_runs(
+    stream: StreamName,
+    faults: Sequence[Any],
+    rngs: Sequence[np.random.Generator],
+    captures: NDArray[np.int64],
+) -> list[str | None]:
+    """Stage 3, loss: per run, the label of the first loss fault that drops it, or None."""
+    dropped_by: list[str | None] = [None] * captures.shape[0]
     for i, (f, rng) in enumerate(zip(faults, rngs, strict=True)):
         if f.stage == "loss":
-            for run in np.flatnonzero(f.dropped(captures, rng)):
-                dropped_by[run] = dropped_by[run] or label(i)
+            for r in np.flatnonzero(f.dropped(captures, rng)):
+                dropped_by[r] = dropped_by[r] or _fault_label(stream, faults, i)
+    return dropped_by
 
-    # 4. corruption
-    corruptions: list[list[Corruption]] = [[] for _ in range(n_runs)]
+
+def _corrupted_runs(
+    stream: StreamName,
+    faults: Sequence[Any],
+    rngs: Sequence[np.random.Generator],
+    captures: NDArray[np.int64],
+    n_frames: int,
+) -> list[tuple[Corruption, ...]]:
+    """Stage 4, corruption: per run, the corruptions drawn for it, in fault order."""
+    corruptions: list[list[Corruption]] = [[] for _ in range(captures.shape[0])]
     for i, (f, rng) in enumerate(zip(faults, rngs, strict=True)):
         if f.stage == "corruption":
             source = f"{stream}.faults[{i}]"
             for r, params in enumerate(f.draw(captures, rng, n_frames)):
                 if params is not None:
                     corruptions[r].append(Corruption(source=source, kind=f.kind, params=params))
+    return [tuple(c) for c in corruptions]
 
-    # 5. stamp, 6. delay
-    offset = np.zeros(n_runs)
-    if not timing_skipped:
-        for f, rng in zip(faults, rngs, strict=True):
-            if f.stage == "stamp":
-                offset += f.offsets(captures, rng)
-            elif f.stage == "delay":
-                delay = delay + f.delays(rng, n_runs)
+
+def _stamped_and_delayed(
+    faults: Sequence[Any],
+    rngs: Sequence[np.random.Generator],
+    captures: NDArray[np.int64],
+    delay: NDArray[np.int64],
+) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Stages 5 and 6, stamp and delay: the capture frame each run reports and its arrival
+    frame (the sampling delay plus every delay fault's)."""
+    offset = np.zeros(captures.shape[0])
+    for f, rng in zip(faults, rngs, strict=True):
+        if f.stage == "stamp":
+            offset += f.offsets(captures, rng)
+        elif f.stage == "delay":
+            delay = delay + f.delays(rng, captures.shape[0])
     reported = np.maximum(np.rint(captures + offset), 0).astype(np.int64)
+    return reported, captures + delay
 
-    # plain Python values from here on (per-run loops over numpy scalars are slow)
-    capture_l, reported_l, arrival_l = (
-        captures.tolist(),
-        reported.tolist(),
-        (captures + delay).tolist(),
-    )
-    valid_l = valid.tolist()
-    corruption_t = [tuple(c) for c in corruptions]
+
+def _first_deliveries(
+    stream: StreamName,
+    first_result: FirstResult,
+    capture_l: list[int],
+    reported_l: list[int],
+    arrival_l: list[int],
+    kept: list[bool],
+    corruptions: list[tuple[Corruption, ...]],
+) -> list[DeliveryEvent]:
+    """One delivery per kept run, in arrival order; the first run's as ``first_result`` says
+    (at its capture frame, and again after the delay for ``undelayed_and_delayed``)."""
     events: list[DeliveryEvent] = []
-    for r in range(n_runs):
-        if not valid_l[r] or dropped_by[r] is not None:
+    for r, keep in enumerate(kept):
+        if not keep:
             continue
         base = DeliveryEvent(
             stream=stream,
@@ -251,38 +270,58 @@ def _schedule_stream(
             true_capture_k=capture_l[r],
             reported_capture_k=reported_l[r],
             arrival_k=arrival_l[r],
-            corruptions=corruption_t[r],
+            corruptions=corruptions[r],
         )
-        if r == 0 and not timing_skipped and cfg.first_result != "delayed":
+        if r == 0 and first_result != "delayed":
             events.append(dataclasses.replace(base, arrival_k=capture_l[0]))
-            if cfg.first_result == "undelayed_and_delayed" and arrival_l[0] > capture_l[0]:
+            if first_result == "undelayed_and_delayed" and arrival_l[0] > capture_l[0]:
                 events.append(dataclasses.replace(base, copy="repeat"))
         else:
             events.append(base)
     events.sort(key=lambda e: (e.arrival_k, e.true_capture_k))  # stable: repeat after original
+    return events
 
-    # 7. delivery
+
+def _delivered(
+    stream: StreamName,
+    faults: Sequence[Any],
+    rngs: Sequence[np.random.Generator],
+    events: list[DeliveryEvent],
+    n_runs: int,
+) -> tuple[list[DeliveryEvent], dict[int, tuple[str, str]]]:
+    """Stage 7, delivery: the deliveries after the delivery faults, and per run they removed
+    ``(fate, fault label)``."""
     removed_by: dict[int, tuple[str, str]] = {}
-    if not timing_skipped:
-        for i, (f, rng) in enumerate(zip(faults, rngs, strict=True)):
-            if f.stage != "delivery":
-                continue
-            if isinstance(f, Blackout):
-                events, removed = apply_blackout_on_arrival(f, events)
-            else:
-                events, removed = f.deliver(events, rng, n_runs)
-            for r, reason in removed.items():
-                removed_by.setdefault(r, (reason, label(i)))
+    for i, (f, rng) in enumerate(zip(faults, rngs, strict=True)):
+        if f.stage != "delivery":
+            continue
+        if isinstance(f, Blackout):
+            events, removed = apply_blackout_on_arrival(f, events)
+        else:
+            events, removed = f.deliver(events, rng, n_runs)
+        for r, reason in removed.items():
+            removed_by.setdefault(r, (reason, _fault_label(stream, faults, i)))
+    return events, removed_by
 
-    # 8. the end of the sequence
-    in_time = [e for e in events if e.arrival_k < n_frames]
-    late = {e.detection_id for e in events if e.arrival_k >= n_frames}
 
+def _detection_records(
+    stream: StreamName,
+    in_time: list[DeliveryEvent],
+    late: set[int],
+    valid_l: list[bool],
+    dropped_by: list[str | None],
+    removed_by: dict[int, tuple[str, str]],
+    capture_l: list[int],
+    reported_l: list[int],
+    corruptions: list[tuple[Corruption, ...]],
+) -> list[DetectionRecord]:
+    """Stage 8: the fate of every run (missed, dropped, removed by a delivery fault, delivered,
+    or arriving after the sequence's end) with its deliveries."""
     by_id: dict[int, list[DeliveryEvent]] = {}
     for e in in_time:
         by_id.setdefault(e.detection_id, []).append(e)
     records = []
-    for r in range(n_runs):
+    for r in range(len(valid_l)):
         fate, cause = "delivered", None
         if not valid_l[r]:
             fate = "missed"
@@ -307,9 +346,69 @@ def _schedule_stream(
                 cause=cause,
                 arrivals=tuple(e.arrival_k for e in deliveries),
                 copies=tuple(e.copy for e in deliveries),
-                corruptions=corruption_t[r],
+                corruptions=corruptions[r],
             )
         )
+    return records
+
+
+def _schedule_stream(
+    stream: StreamName,
+    cfg: PoseStreamFaults | MaskStreamFaults,
+    n_frames: int,
+    fps: int,
+    root: np.random.SeedSequence,
+    valid_spec: ValidSpec,
+    ideal: bool,
+) -> tuple[tuple[DeliveryEvent, ...], tuple[DetectionRecord, ...]]:
+    """The deliveries and per-run records of one detection stream, stage by stage
+    (docs/faults.md). ``ideal`` ("detector ideal"): every frame, at its own frame, no stamp,
+    delay or delivery faults."""
+    faults = cfg.faults
+    rngs = _fault_rngs(root, stream, faults)
+    if ideal:
+        captures = np.arange(n_frames, dtype=np.int64)
+        delay = np.zeros(n_frames, dtype=np.int64)
+    else:
+        captures, delay = _sample_runs(faults, rngs, n_frames, fps)  # 1. sampling
+    n_runs = captures.shape[0]
+    valid = _valid_for(valid_spec, captures, n_frames, stream)  # 2. misses
+    dropped_by = _lost_runs(stream, faults, rngs, captures)  # 3. loss
+    corruptions = _corrupted_runs(stream, faults, rngs, captures, n_frames)  # 4. corruption
+    if ideal:
+        reported, arrival = captures.copy(), captures + delay
+    else:
+        reported, arrival = _stamped_and_delayed(faults, rngs, captures, delay)  # 5., 6.
+    # plain Python values from here on (per-run loops over numpy scalars are slow)
+    capture_l, reported_l, arrival_l = captures.tolist(), reported.tolist(), arrival.tolist()
+    valid_l = valid.tolist()
+    kept = [v and d is None for v, d in zip(valid_l, dropped_by, strict=True)]
+    events = _first_deliveries(
+        stream,
+        "delayed" if ideal else cfg.first_result,
+        capture_l,
+        reported_l,
+        arrival_l,
+        kept,
+        corruptions,
+    )
+    removed_by: dict[int, tuple[str, str]] = {}
+    if not ideal:
+        events, removed_by = _delivered(stream, faults, rngs, events, n_runs)  # 7. delivery
+    # 8. the end of the sequence
+    in_time = [e for e in events if e.arrival_k < n_frames]
+    late = {e.detection_id for e in events if e.arrival_k >= n_frames}
+    records = _detection_records(
+        stream,
+        in_time,
+        late,
+        valid_l,
+        dropped_by,
+        removed_by,
+        capture_l,
+        reported_l,
+        corruptions,
+    )
     return tuple(in_time), tuple(records)
 
 

@@ -286,24 +286,10 @@ def _longest_chain(joints: list[dict[str, Any]]) -> float:
     return best
 
 
-def read_bvh(path: str | Path, *, unit: BvhUnit = "auto") -> BvhMotion:
-    """Parses a BVH file.
-
-    Args:
-        path: the ``.bvh`` file.
-        unit: the file's length unit, or ``"auto"`` to detect it (:func:`detect_bvh_unit`).
-
-    Raises:
-        DatasetFormatError: missing file, syntax errors in the hierarchy, a motion line with the
-            wrong number of values, a value that is not a finite number, or a frame count that
-            differs from ``Frames:``; the message names the file and line.
-        ConfigError: an unknown ``unit``.
-    """
-    path = Path(path)
-    if unit != "auto" and unit not in BVH_UNIT_METRES:
-        raise ConfigError(f"bvh unit {unit!r} is not one of auto, {', '.join(BVH_UNIT_METRES)}")
+def _bvh_lines(path: Path) -> list[str]:
+    """The file's lines; a missing file, a folder or a non-UTF-8 file raises naming it."""
     try:
-        lines = path.read_text(encoding="utf-8", errors="strict").splitlines()
+        return path.read_text(encoding="utf-8", errors="strict").splitlines()
     except FileNotFoundError:
         raise DatasetFormatError(
             f"BVH file {located(path)} does not exist; check the path"
@@ -314,11 +300,10 @@ def read_bvh(path: str | Path, *, unit: BvhUnit = "auto") -> BvhMotion:
         ) from None
     except UnicodeDecodeError as e:
         raise DatasetFormatError(f"{located(path)} is not a UTF-8 text file ({e})") from None
-    motion_line = next((i for i, s in enumerate(lines) if s.strip() == "MOTION"), None)
-    if motion_line is None:
-        raise DatasetFormatError(
-            f"{located(path)} has no MOTION line; a BVH file needs HIERARCHY and MOTION sections"
-        )
+
+
+def _bvh_hierarchy(path: Path, lines: list[str], motion_line: int) -> tuple[list[dict], int]:
+    """The joints of the HIERARCHY section (one ROOT) and the number of MOTION columns."""
     tokens = _Tokens(path, lines, motion_line)
     tokens.expect("HIERARCHY")
     tokens.expect("ROOT")
@@ -332,7 +317,12 @@ def read_bvh(path: str | Path, *, unit: BvhUnit = "auto") -> BvhMotion:
             f"{located(path, line)}: unexpected {tok!r} after the root joint's closing brace "
             "(only one ROOT is supported)"
         )
-    n_columns = column[0]
+    return joints, column[0]
+
+
+def _bvh_motion_header(path: Path, lines: list[str], motion_line: int) -> tuple[int, float]:
+    """``Frames:`` and ``Frame Time:`` [s] after MOTION; a frame time printed with few digits
+    (0.0083333) snaps to the exact 1 / fps it rounds."""
 
     def header(offset: int, prefix: str) -> str:
         number = motion_line + offset
@@ -361,7 +351,13 @@ def read_bvh(path: str | Path, *, unit: BvhUnit = "auto") -> BvhMotion:
     decimals = len(frame_time_text.split(".")[1]) if "." in frame_time_text else 0
     if fps > 0 and abs(frame_time - 1.0 / fps) <= 0.5 * 10.0**-decimals:
         frame_time = 1.0 / fps
+    return n_frames, frame_time
 
+
+def _bvh_motion_values(
+    path: Path, lines: list[str], motion_line: int, n_columns: int, n_frames: int
+) -> NDArray[np.float64]:
+    """The ``(n_frames, n_columns)`` channel values of the MOTION lines, in the file's units."""
     first_data = motion_line + 3
     data_lines = [(i, s) for i, s in enumerate(lines[first_data:], start=first_data) if s.strip()]
     values = np.empty((len(data_lines), n_columns))
@@ -388,7 +384,14 @@ def read_bvh(path: str | Path, *, unit: BvhUnit = "auto") -> BvhMotion:
             f"{located(path, motion_line + 2)}: 'Frames: {n_frames}' but {len(data_lines)} frame "
             "lines follow (truncated file?); fix the count or restore the missing lines"
         )
+    return values
 
+
+def _joints_in_metres(
+    path: Path, joints: list[dict], values: NDArray[np.float64], unit: BvhUnit
+) -> tuple[tuple[BvhJoint, ...], str]:
+    """The joints with offsets in metres and the unit used (detected for ``"auto"``); scales
+    the position channels of ``values`` in place."""
     if unit == "auto":
         chain = _longest_chain(joints)
         if chain <= 0:
@@ -413,8 +416,37 @@ def read_bvh(path: str | Path, *, unit: BvhUnit = "auto") -> BvhMotion:
         for k, ch in enumerate(j["channels"]):
             if ch[1:].lower() == "position":
                 values[:, j["first_column"] + k] *= scale
+    return tuple(built), unit
+
+
+def read_bvh(path: str | Path, *, unit: BvhUnit = "auto") -> BvhMotion:
+    """Parses a BVH file.
+
+    Args:
+        path: the ``.bvh`` file.
+        unit: the file's length unit, or ``"auto"`` to detect it (:func:`detect_bvh_unit`).
+
+    Raises:
+        DatasetFormatError: missing file, syntax errors in the hierarchy, a motion line with the
+            wrong number of values, a value that is not a finite number, or a frame count that
+            differs from ``Frames:``; the message names the file and line.
+        ConfigError: an unknown ``unit``.
+    """
+    path = Path(path)
+    if unit != "auto" and unit not in BVH_UNIT_METRES:
+        raise ConfigError(f"bvh unit {unit!r} is not one of auto, {', '.join(BVH_UNIT_METRES)}")
+    lines = _bvh_lines(path)
+    motion_line = next((i for i, s in enumerate(lines) if s.strip() == "MOTION"), None)
+    if motion_line is None:
+        raise DatasetFormatError(
+            f"{located(path)} has no MOTION line; a BVH file needs HIERARCHY and MOTION sections"
+        )
+    joints, n_columns = _bvh_hierarchy(path, lines, motion_line)
+    n_frames, frame_time = _bvh_motion_header(path, lines, motion_line)
+    values = _bvh_motion_values(path, lines, motion_line, n_columns, n_frames)
+    built, unit_used = _joints_in_metres(path, joints, values, unit)
     return BvhMotion(
-        path=path, joints=tuple(built), values=values, frame_time_s=frame_time, unit=unit
+        path=path, joints=built, values=values, frame_time_s=frame_time, unit=unit_used
     )
 
 
