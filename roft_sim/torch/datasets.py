@@ -306,7 +306,8 @@ def _pad_stack(values: Sequence[torch.Tensor]) -> tuple[torch.Tensor, torch.Tens
     size = [max(s[d] for s in shapes) for d in range(ranks.pop())]
     out = values[0].new_zeros((len(values), *size))
     for i, v in enumerate(values):
-        out[(i, *(slice(0, n) for n in v.shape))] = v
+        region: tuple[int | slice, ...] = (i, *(slice(0, n) for n in v.shape))
+        out[region] = v
     return out, torch.tensor([list(v.shape) for v in values], dtype=torch.int64)
 
 
