@@ -85,6 +85,8 @@ def _run(args: argparse.Namespace) -> int:
         prepare_output_dir(out)
 
     from roft_sim.harness.demo import DemoSettings, demo_table_rows, run_demo
+    from roft_sim.harness.options import default_invalid_policy
+    from roft_sim.metrics import policy_note
     from roft_sim.report.tables import METRIC_COLUMNS, Column, text_table
 
     settings = DemoSettings(
@@ -109,6 +111,7 @@ def _run(args: argparse.Namespace) -> int:
     print(f"003_cracker_box, {result.frames} frames at {w}x{h}, {what}:")
     columns = [Column("name", "tracker", align="left"), *METRIC_COLUMNS]
     print(text_table(columns, demo_table_rows(result.metrics)), end="")
+    print(policy_note(default_invalid_policy(load_faults(args.faults).name)))
     print(f"dataset: {result.dataset_dir}")
     for name, path in result.run_dirs.items():
         print(f"run {name}: {path}")

@@ -31,9 +31,8 @@ __all__ = [
 ]
 
 AUTO_INVALID = "auto"
-"""``--invalid auto``: :data:`PAPER_INVALID` under the ``paper`` faults, else ``failure``."""
-PAPER_INVALID = "hold"
-"""The invalid-estimate policy of the ``paper`` fault preset: the reference's."""
+"""``--invalid auto``: ``hold`` under the ``paper`` faults, else ``failure``
+(:func:`roft_sim.harness.options.default_invalid_policy`)."""
 
 
 def resolve_invalid_policy(choice: str, faults_name: str) -> InvalidPolicy:
@@ -42,10 +41,11 @@ def resolve_invalid_policy(choice: str, faults_name: str) -> InvalidPolicy:
     Raises:
         ConfigError: an unknown policy.
     """
+    from roft_sim.harness.options import default_invalid_policy
     from roft_sim.metrics import INVALID_POLICIES
 
     if choice == AUTO_INVALID:
-        choice = PAPER_INVALID if faults_name == "paper" else "failure"
+        return default_invalid_policy(faults_name)
     if choice not in INVALID_POLICIES:
         raise ConfigError(f"unknown --invalid {choice!r}; expected auto or {INVALID_POLICIES}")
     return cast("InvalidPolicy", choice)

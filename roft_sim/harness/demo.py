@@ -21,7 +21,7 @@ from roft_sim.faults import load_faults
 from roft_sim.generation import GenerationOptions, generate_dataset
 from roft_sim.generation.jobs import ScenarioOverrides
 from roft_sim.generation.presets import preset_scenario_paths
-from roft_sim.harness.options import RunOptions
+from roft_sim.harness.options import RunOptions, default_invalid_policy
 from roft_sim.harness.run_dataset import open_sequences, run_sequences
 from roft_sim.scenario import load_scenario
 
@@ -100,7 +100,12 @@ def run_demo(
         run_dir = out / "runs" / tracker
         result = run_sequences(
             sources,
-            RunOptions(tracker=tracker, faults=faults, seed=s.seed),
+            RunOptions(
+                tracker=tracker,
+                faults=faults,
+                seed=s.seed,
+                invalid=default_invalid_policy(faults.name),
+            ),
             run_dir,
             progress=s.progress,
         )

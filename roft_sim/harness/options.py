@@ -24,6 +24,8 @@ __all__ = [
     "GT_SET",
     "NO_SET",
     "INIT_POLICIES",
+    "PAPER_INVALID",
+    "default_invalid_policy",
 ]
 
 AUTO = "auto"
@@ -32,6 +34,16 @@ GT_SET = "gt"
 """The ground-truth pose or mask set: an ablation input, fed by the harness."""
 NO_SET = "none"
 """No input of that kind (no pose detections, no masks, no flow)."""
+
+PAPER_INVALID: InvalidPolicy = "hold"
+"""The invalid-estimate policy of the ``paper`` fault preset: the reference's (docs/metrics.md)."""
+
+
+def default_invalid_policy(faults_name: str) -> InvalidPolicy:
+    """The default invalid-estimate policy under a fault configuration: :data:`PAPER_INVALID`
+    under the ``paper`` preset (the reference's setting), ``failure`` (ours) otherwise."""
+    return PAPER_INVALID if faults_name == "paper" else "failure"
+
 
 InitPolicy = Literal["first-detection", "robust", "gt"]
 INIT_POLICIES: tuple[str, ...] = ("first-detection", "robust", "gt")

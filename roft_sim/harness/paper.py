@@ -34,7 +34,7 @@ from roft_sim.harness.cells import (
     load_cell_metrics,
 )
 from roft_sim.harness.inputs import check_inputs
-from roft_sim.harness.options import RunOptions
+from roft_sim.harness.options import PAPER_INVALID, RunOptions
 from roft_sim.harness.outputs import write_json
 from roft_sim.harness.run_dataset import find_sequences
 from roft_sim.metrics import SequenceMetrics, concatenate_metrics, policy_note
@@ -56,8 +56,6 @@ __all__ = [
     "Finding",
 ]
 
-PAPER_INVALID = "hold"
-"""The invalid-estimate policy of every row: the reference's (docs/metrics.md)."""
 PAPER_FAULTS = "paper"
 """The fault preset of every row: 5 fps networks, results 6 frames late, frame 0 undelayed."""
 

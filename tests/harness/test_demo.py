@@ -18,6 +18,7 @@ def test_demo_generates_a_sequence_tracks_it_and_prints_the_comparison(tmp_path,
     printed = capsys.readouterr().out
     assert "paper faults (pose and mask networks at 5 fps, results 6 frames late)" in printed
     assert "roft " in printed and "detector-hold " in printed and "ADD-AUC %" in printed
+    assert "invalid estimates: hold (" in printed  # the table names the policy (paper faults)
     sequence = out / "dataset" / "003_cracker_box"
     assert len(list((sequence / "rgb").glob("*.png"))) == 18
     assert (sequence / "dope" / "poses.txt").is_file()
@@ -29,6 +30,7 @@ def test_demo_generates_a_sequence_tracks_it_and_prints_the_comparison(tmp_path,
         assert metrics["003_cracker_box"]["frames"] == 18
         assert summary["metrics"][name]["add_auc_pct"] == metrics["003_cracker_box"]["add_auc_pct"]
         assert len((run / "003_cracker_box" / "pose_estimate.txt").read_text().splitlines()) == 18
+        assert json.loads((run / "run.json").read_text())["options"]["invalid"] == "hold"
     # a second run into the same folder needs --overwrite, and the message does not offer --resume
     assert main(argv) == 2
     err = capsys.readouterr().err
