@@ -297,6 +297,13 @@ def _run(args: argparse.Namespace) -> int:
     else:
         for s in summary.sequences:
             print(f"{s.path} ({s.n_frames} frames, {s.frames_generated} generated now)")
+            if s.visibility is not None:
+                v = s.visibility
+                print(
+                    f"  object visible fraction: mean {v['mean']:.3f}, p10 {v['p10']:.3f}, "
+                    f"p50 {v['p50']:.3f}, min {v['min']:.3f}; "
+                    f"{100 * v['frames_below_half']:.1f} % of frames below half visible"
+                )
         print(
             f"{summary.frames_generated} frames in {summary.wall_s:.1f} s "
             f"({summary.frames_per_s:.2f} frames/s, {summary.workers} worker"

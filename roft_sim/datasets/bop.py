@@ -348,6 +348,8 @@ class BopWriter(FolderWriter):
                 "px_count_visib": n_visib,
                 "visib_fract": n_visib / n_all if n_all else 0.0,
             }
+        if frame.gt_distractors:
+            extra["distractors"] = self._write_distractors(frame)
         for name, flow in frame.flows.items():
             atomic_write_bytes(
                 f"{seq}/extras/flow/{name}/{k:06d}.float",
@@ -365,6 +367,33 @@ class BopWriter(FolderWriter):
             else:
                 remove_file(path)
         return extra
+
+    def _write_distractors(self, frame: DatasetFrame) -> list[dict[str, Any]]:
+        """Clutter: each distractor is one more ground-truth instance of the image (index 1,
+        2, ... after the tracked object's 0): its masks and its scene_gt / scene_gt_info entries
+        (``obj_id`` from its YCB-V name, else 1; no model is written for it)."""
+        seq, k = self.sequence_path, frame.k
+        out = []
+        for i, d in enumerate(frame.gt_distractors, start=1):
+            full = d.mask_full if d.mask_full is not None else d.mask
+            atomic_write_bytes(f"{seq}/mask/{k:06d}_{i:06d}.png", encode_png_mask(full))
+            atomic_write_bytes(f"{seq}/mask_visib/{k:06d}_{i:06d}.png", encode_png_mask(d.mask))
+            n_all, n_visib = int(full.sum()), int(d.mask.sum())
+            R, t = _r_t_mm(d.T_cam_obj)
+            out.append(
+                {
+                    "gt": {"cam_R_m2c": R, "cam_t_m2c": t, "obj_id": bop_obj_id(d.name)},
+                    "gt_info": {
+                        "bbox_obj": _bbox(full),
+                        "bbox_visib": _bbox(d.mask),
+                        "px_count_all": n_all,
+                        "px_count_valid": int((full & (frame.depth_m > 0)).sum()),
+                        "px_count_visib": n_visib,
+                        "visib_fract": n_visib / n_all if n_all else 0.0,
+                    },
+                }
+            )
+        return out
 
     def _write_model(self, model: ObjectModel) -> None:
         seq = self.sequence_path
@@ -429,8 +458,12 @@ class BopWriter(FolderWriter):
                 if r["gt_T_cam_obj"] is not None:
                     R, t = _r_t_mm(r["gt_T_cam_obj"])
                     gt = [{"cam_R_m2c": R, "cam_t_m2c": t, "obj_id": self.obj_id}]
+                info = [r["gt_info"]] if r["gt_info"] is not None else []
+                for distractor in r.get("distractors", []):  # clutter: instances 1, 2, ...
+                    gt.append(distractor["gt"])
+                    info.append(distractor["gt_info"])
                 entry(gt_path, k, gt)
-                entry(info_path, k, [r["gt_info"]] if r["gt_info"] is not None else [])
+                entry(info_path, k, info)
                 entry(time_path, k, {"t_s": r["t_s"]})
                 if r["gt_v_obj_mps"] is not None:
                     velocity = {"v_obj_mps": r["gt_v_obj_mps"], "w_radps": r["gt_w_radps"]}

@@ -29,6 +29,7 @@ Bool = NDArray[np.bool_]
 
 __all__ = [
     "DatasetFrame",
+    "DistractorTruth",
     "SequenceWriter",
     "FlowEncoding",
     "FLOW_ENCODINGS",
@@ -80,6 +81,20 @@ def _check_pose(name: str, T: object) -> None:
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
+class DistractorTruth:
+    """Ground truth of one distractor object in a frame (clutter; see docs/scenarios.md)."""
+
+    name: str
+    """Its object name (registry name or mesh path)."""
+    T_cam_obj: F64
+    """(4, 4) its pose in the camera frame [m]."""
+    mask: Bool
+    """(H, W) bool its visible pixels."""
+    mask_full: Bool | None = None
+    """(H, W) bool its full silhouette ignoring occluders, or None."""
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
 class DatasetFrame:
     """Everything a generator produces for one camera frame ``k``.
 
@@ -114,6 +129,12 @@ class DatasetFrame:
     """Mask set name -> (H, W) bool detector mask of this frame, None = detector miss."""
     detector_poses: Mapping[str, F64 | None] = field(default_factory=dict)
     """Pose set name -> (4, 4) detected ``T_cam_obj`` [m], None = miss."""
+    gt_visible_fraction: float | None = None
+    """Visible fraction of the object in [0, 1] (``|visible| / |visible or full|``), or None;
+    summarised per sequence in the metadata (``ground_truth_visibility``)."""
+    gt_distractors: tuple[DistractorTruth, ...] = ()
+    """Ground truth of the distractor objects (BOP writes them; the other formats keep the
+    tracked object only)."""
 
     def __post_init__(self) -> None:
         if isinstance(self.k, bool) or not isinstance(self.k, int | np.integer) or self.k < 0:
@@ -148,6 +169,16 @@ class DatasetFrame:
             m = getattr(self, name)
             if m is not None:
                 _check_array(name, m, np.bool_, (h, w))
+        if self.gt_visible_fraction is not None and not 0.0 <= self.gt_visible_fraction <= 1.0:
+            raise ValueError(
+                f"DatasetFrame.gt_visible_fraction must lie in [0, 1], got "
+                f"{self.gt_visible_fraction}"
+            )
+        for i, d in enumerate(self.gt_distractors):
+            _check_pose(f"gt_distractors[{i}].T_cam_obj", d.T_cam_obj)
+            _check_array(f"gt_distractors[{i}].mask", d.mask, np.bool_, (h, w))
+            if d.mask_full is not None:
+                _check_array(f"gt_distractors[{i}].mask_full", d.mask_full, np.bool_, (h, w))
         if self.k == 0 and self.flows:
             raise ValueError(f"frame 0 has no previous frame, but flows {list(self.flows)} given")
         for set_name, flow in self.flows.items():

@@ -44,7 +44,13 @@ from roft_sim.errors import ConfigError, DatasetFormatError, located
 from roft_sim.geometry.camera import CameraIntrinsics
 from roft_sim.records import ObjectModel
 
-__all__ = ["WriterSettings", "StreamingWriter", "format_frame_ranges", "RESERVED_METADATA_KEYS"]
+__all__ = [
+    "WriterSettings",
+    "StreamingWriter",
+    "format_frame_ranges",
+    "visible_fraction_stats",
+    "RESERVED_METADATA_KEYS",
+]
 
 RESERVED_METADATA_KEYS = frozenset(
     {
@@ -57,6 +63,7 @@ RESERVED_METADATA_KEYS = frozenset(
         "intrinsics",
         "sets",
         "ground_truth",
+        "ground_truth_visibility",
         "conventions",
         "package_versions",
         "format_options",
@@ -133,6 +140,25 @@ class WriterSettings:
     def flow_encoding(self, set_name: str) -> str:
         """Encoding of a flow set (``float32`` unless configured)."""
         return self.flow_encodings.get(set_name, "float32")
+
+
+def visible_fraction_stats(values: list[float | None]) -> dict[str, float] | None:
+    """Per-sequence statistics of the object's visible fraction (frames' values in [0, 1]):
+    mean, min, 10th/50th/90th percentiles and the fractions of frames below 0.5 and at 0 (out of
+    view or fully hidden); None unless every frame has a value."""
+    if not values or any(v is None for v in values):
+        return None
+    v = np.asarray(values, dtype=np.float64)
+    p10, p50, p90 = np.percentile(v, [10, 50, 90])
+    return {
+        "mean": round(float(v.mean()), 6),
+        "min": round(float(v.min()), 6),
+        "p10": round(float(p10), 6),
+        "p50": round(float(p50), 6),
+        "p90": round(float(p90), 6),
+        "frames_below_half": round(float((v < 0.5).mean()), 6),
+        "frames_hidden": round(float((v == 0).mean()), 6),
+    }
 
 
 def model_digest(model: ObjectModel | None) -> str | None:
@@ -267,6 +293,14 @@ class StreamingWriter(ABC):
             "detector_masks": {n: m is not None for n, m in sorted(frame.detector_masks.items())},
             "detector_poses": dict(sorted(frame.detector_poses.items())),
         }
+        # Scene-side ground truth (clutter, visibility): only when given, so that records and
+        # files of scenes without them stay as they were.
+        if frame.gt_visible_fraction is not None:
+            record["gt_visible_fraction"] = float(frame.gt_visible_fraction)
+        if frame.gt_distractors:
+            record["gt_distractors"] = [
+                {"name": d.name, "T_cam_obj": d.T_cam_obj} for d in frame.gt_distractors
+            ]
         record.update(self._write_frame_files(frame))
         self.parts_dir.mkdir(parents=True, exist_ok=True)
         atomic_write_text(self._record_path(frame.k), dumps_json(record))
@@ -343,8 +377,10 @@ class StreamingWriter(ABC):
         first: dict[str, Any] = {}
         odd: dict[str, list[int]] = {key: [] for key in checks}
         previous_t = -np.inf
+        visible: list[float | None] = []
         for r in records:
             k = r["k"]
+            visible.append(r.get("gt_visible_fraction"))
             for key, value_of in checks.items():
                 value = value_of(r)
                 if key == "flow sets and grids" and k == 0:
@@ -374,6 +410,7 @@ class StreamingWriter(ABC):
                 f"{sorted(unknown)} that no frame holds (frames hold {sorted(flow_grids)})"
             )
         return {
+            "visibility": visible_fraction_stats(visible),
             "ground_truth": {
                 "poses": first["ground-truth poses"],
                 "velocities": first["ground-truth velocities"],
@@ -410,4 +447,6 @@ class StreamingWriter(ABC):
                 "object_model": s.model_digest is not None,
             }
         )
+        if summary.get("visibility") is not None:
+            meta["ground_truth_visibility"] = summary["visibility"]
         return meta

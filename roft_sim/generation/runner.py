@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
-from roft_sim.datasets import DATASET_FORMATS
+from roft_sim.datasets import DATASET_FORMATS, open_sequence
 from roft_sim.datasets.image_files import PNG_COMPRESSION, check_png_compression
 from roft_sim.errors import ConfigError, RoftSimError
 from roft_sim.executors import (
@@ -139,6 +139,10 @@ class SequenceResult:
     """Frames of the sequence."""
     frames_generated: int
     """Frames generated in this run (0 when it was already complete)."""
+    visibility: dict[str, float] | None = None
+    """The object's visible-fraction statistics of the finished sequence (its metadata's
+    ``ground_truth_visibility``: mean, min, p10, p50, p90, frames_below_half, frames_hidden),
+    None while unfinished or without them."""
 
     @property
     def finished(self) -> bool:
@@ -195,6 +199,7 @@ class GenerationSummary:
                     "n_frames": s.n_frames,
                     "frames_generated": s.frames_generated,
                     "finished": s.finished,
+                    "visibility": s.visibility,
                 }
                 for s in self.sequences
             ],
@@ -370,6 +375,14 @@ def _default_executor(options: GenerationOptions, n_units: int) -> Executor:
     return LocalProcessExecutor(options.workers, start_method=options.start_method)
 
 
+def _visibility_of(path: Path | None) -> dict[str, float] | None:
+    """The visible-fraction statistics in a finished sequence's metadata (None if absent)."""
+    if path is None:
+        return None
+    value = open_sequence(path).metadata().get("ground_truth_visibility")
+    return value if isinstance(value, dict) else None
+
+
 def generate_dataset(
     scenarios: Sequence[Scenario],
     out_dir: str | Path,
@@ -504,6 +517,7 @@ class _RunProgress:
                 path=self.paths[i],
                 n_frames=j.n_frames,
                 frames_generated=self.generated[i],
+                visibility=_visibility_of(self.paths[i]),
             )
             for i, j in enumerate(self.jobs)
         )

@@ -33,7 +33,7 @@ from typing import Any, cast
 import numpy as np
 from numpy.typing import NDArray
 
-from roft_sim.datasets.frames import DatasetFrame
+from roft_sim.datasets.frames import DatasetFrame, DistractorTruth
 from roft_sim.geometry import CameraIntrinsics, relative_motion
 from roft_sim.records import FlowField, PoseTrack
 from roft_sim.render.depth_renderer import MujocoDepthRenderer
@@ -221,6 +221,7 @@ class SequenceGenerator:
         self.scenario = scenario
         self.networks = scenario.networks
         self._silhouettes: MujocoDepthRenderer | None = None
+        self._distractor_silhouettes: list[MujocoDepthRenderer] = []
         self._renderer = SceneRenderer(
             scenario,
             assets_dir=assets_dir,
@@ -232,6 +233,9 @@ class SequenceGenerator:
         try:
             model = self._renderer.object_assets.mesh
             self._silhouettes = MujocoDepthRenderer(model)
+            self._distractor_silhouettes = [
+                MujocoDepthRenderer(d.mesh) for d in self._renderer.distractors
+            ]
             self.track = ground_truth_track(self._renderer)
             self._flow_sources = {
                 f.set_name: _flow_source(f.source_spec, f, flow_set_seed(scenario, f.set_name))
@@ -314,7 +318,26 @@ class SequenceGenerator:
             flows=flows,
             detector_masks=masks,
             detector_poses=poses,
+            gt_visible_fraction=vis,
+            gt_distractors=self._distractor_truths(current),
         )
+
+    def _distractor_truths(self, frame: RenderedFrame) -> tuple[DistractorTruth, ...]:
+        """Each distractor's pose, visible mask (its body in the rendered segmentation) and full
+        silhouette (rendered alone, united with the visible mask)."""
+        assert frame.body_index is not None
+        truths = []
+        for i, (name, T) in enumerate(
+            zip(frame.distractor_names, frame.T_cam_distractors, strict=True)
+        ):
+            visible = frame.body_index == frame.body_names.index(f"distractor{i}")
+            depth = self._distractor_silhouettes[i].render_depth(T, self.scenario.intrinsics)[0]
+            truths.append(
+                DistractorTruth(
+                    name=name, T_cam_obj=T, mask=visible, mask_full=(depth > 0) | visible
+                )
+            )
+        return tuple(truths)
 
     def _full_silhouette(self, frame: RenderedFrame) -> Bool:
         assert self._silhouettes is not None
@@ -343,6 +366,9 @@ class SequenceGenerator:
         if self._silhouettes is not None:
             self._silhouettes.close()
             self._silhouettes = None
+        for renderer in self._distractor_silhouettes:
+            renderer.close()
+        self._distractor_silhouettes = []
         self._renderer.close()
 
     def __enter__(self) -> SequenceGenerator:

@@ -253,7 +253,12 @@ def build_scene(
     spec.modelname = "roft_sim_scene"
     _set_visual_options(spec, intrinsics, scene, render)
     _add_camera_rig(spec, intrinsics)
-    _add_textured_body(spec, "object", object_mesh, vertices, faces, object_rgba)
+    obj = _add_textured_body(spec, "object", object_mesh, vertices, faces, object_rgba)
+    if scene.hand.enabled and scene.hand.kind == "articulated":
+        # Makes MuJoCo compute the mesh's convex hull, which the hand's distance queries use
+        # (without it every query scans all vertices). Nothing collides: conaffinity stays 0
+        # everywhere, and the replay is kinematic.
+        obj.contype = 1
     half_extents = np.maximum(np.abs(vertices.min(axis=0)), np.abs(vertices.max(axis=0)))
     if scene.hand.enabled:
         _add_hand(spec, scene.hand, half_extents)
@@ -321,9 +326,9 @@ def _add_textured_body(
     vertices: F64,
     faces: I64,
     rgba: tuple[float, float, float, float],
-) -> None:
+) -> mujoco.MjsGeom:
     """A mocap body ``name`` with one mesh geom ``name`` (assets ``<name>_tex``, ``_mat``,
-    ``_mesh``)."""
+    ``_mesh``); returns the geom."""
     body = spec.worldbody.add_body(name=name, mocap=True)
     uv = getattr(mesh, "uv", None)
     texture = getattr(mesh, "texture_rgb", None)
@@ -335,7 +340,7 @@ def _add_textured_body(
         material = _add_material(spec, f"{name}_mat", None, rgba=rgba)
         texcoords = None
     _add_mesh(spec, f"{name}_mesh", vertices, faces, texcoords)
-    _visual_geom(
+    return _visual_geom(
         body,
         name=name,
         type=mujoco.mjtGeom.mjGEOM_MESH,

@@ -1,0 +1,72 @@
+"""The scene's ground truth reaches the datasets: BOP carries every distractor as one more
+instance per image (pose, masks, info), Fast-YCB keeps the tracked object only, and the object's
+visible-fraction statistics land in the metadata and in generate's summary."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+
+from roft_sim.datasets import open_sequence
+from roft_sim.datasets.bop import bop_obj_id
+from roft_sim.generation import (
+    GenerationOptions,
+    ScenarioOverrides,
+    generate_dataset,
+    shipped_scenarios_dir,
+)
+from roft_sim.scenario import load_scenario
+from roft_sim.scene.config import DistractorConfig, HandConfig
+
+pytestmark = pytest.mark.render
+
+
+def _scenario():
+    scenario = load_scenario(shipped_scenarios_dir() / "ci" / "cracker_box.toml")
+    scene = dataclasses.replace(
+        scenario.scene,
+        hand=HandConfig(enabled=True),
+        distractors=(DistractorConfig(name="005_tomato_soup_can", position_m=(0.2, 1.2)),),
+    )
+    scenario = dataclasses.replace(scenario, scene=scene, seed=2)  # a grasp the camera sees
+    return ScenarioOverrides(frames=3, resolution=(160, 120)).apply(scenario)
+
+
+@pytest.mark.parametrize("fmt", ["bop", "fast-ycb"])
+def test_distractors_and_visibility_reach_the_dataset(tmp_path, fmt):
+    options = GenerationOptions(format=fmt, progress=False)
+    summary = generate_dataset([_scenario()], tmp_path, options)
+    (result,) = summary.sequences
+    meta = json.loads((result.path / "metadata.json").read_text())
+    stats = meta["ground_truth_visibility"]
+    assert result.visibility == stats and summary.report()["sequences"][0]["visibility"] == stats
+    # Oracle: the stored visible and full masks of the tracked object.
+    seq = open_sequence(result.path)
+    fractions = []
+    for k in range(3):
+        visible, full = seq.mask(k, "gt"), seq.mask(k, "gt_full")
+        fractions.append(visible.sum() / (visible | full).sum())
+    assert stats["mean"] == pytest.approx(np.mean(fractions), abs=1e-6)
+    assert stats["min"] < 1.0  # the hand hides part of the object
+    if fmt == "fast-ycb":
+        return
+    gt = json.loads((result.path / "scene_gt.json").read_text())
+    info = json.loads((result.path / "scene_gt_info.json").read_text())
+    for k in ("0", "1", "2"):
+        assert [g["obj_id"] for g in gt[k]] == [seq.metadata()["format_options"]["obj_id"],
+                                                 bop_obj_id("005_tomato_soup_can")]  # fmt: skip
+        assert len(info[k]) == 2 and info[k][1]["px_count_visib"] > 20
+        assert (result.path / "mask_visib" / f"{int(k):06d}_000001.png").is_file()
+        assert (result.path / "mask" / f"{int(k):06d}_000001.png").is_file()
+    # The distractor rests on the table: its pose in the world is the same in every frame.
+    cams = seq.camera_poses()
+    poses = []
+    for k in range(3):
+        T = np.eye(4)
+        T[:3, :3] = np.reshape(gt[str(k)][1]["cam_R_m2c"], (3, 3))
+        T[:3, 3] = np.asarray(gt[str(k)][1]["cam_t_m2c"]) / 1000.0
+        poses.append(cams[k] @ T)
+    np.testing.assert_allclose(poses[0], poses[2], atol=1e-6)
