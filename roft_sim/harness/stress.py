@@ -19,7 +19,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
@@ -387,7 +387,7 @@ def _scalars(
 def score_stress(
     cells: Sequence[SweepCell],
     cells_dir: Path,
-    split_of: dict[str, str],
+    split_of: Mapping[str, str],
     *,
     subject: str,
     baselines: Sequence[str],
@@ -417,15 +417,18 @@ def score_stress(
             entry
         )
         parts.setdefault(("flow", split, cell.label, cell.options.flow), []).append(entry)
-    pooled, per_sequence, per_flow = {}, {}, {}
-    for key, entries in parts.items():
+    Scores = dict[tuple[str, str, str], dict[str, float]]
+    pooled: Scores = {}
+    per_sequence: Scores = {}
+    per_flow: Scores = {}
+    for group, entries in parts.items():
         scalars = _scalars(
             concatenate_metrics([e[0] for e in entries]),
             [e[1] for e in entries if e[1] is not None],
             [e[2] for e in entries if e[2] is not None],
         )
-        target = {"split": pooled, "seq": per_sequence, "flow": per_flow}[key[0]]
-        target[(key[1], key[2], key[3])] = scalars
+        target = {"split": pooled, "seq": per_sequence, "flow": per_flow}[group[0]]
+        target[(group[1], group[2], group[3])] = scalars
     verdicts = {}
     presets = list(dict.fromkeys(c.fault_label for c in cells))
     for split in sorted(set(split_of.values())):
