@@ -1,6 +1,7 @@
 """Where the files shipped with roft_sim live: the one place that knows.
 
-Scenario files (``ci/``, ``fast_ycb/``) and fault presets (``faults/``) are package data in
+Scenario files (``ci/``, ``fast_ycb/``), fault presets (``faults/``) and the stress benchmark's
+sweep file (``sweeps/stress.toml``) are package data in
 ``roft_sim/scenarios/``; the repository also shows them at ``scenarios/`` (a symbolic link), so
 paths like ``scenarios/ci/cracker_box.toml`` work from a checkout.
 """

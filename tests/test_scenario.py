@@ -16,8 +16,10 @@ from roft_sim.sensors.depth_noise import NoDepthNoise, RealSenseDepthNoise
 from roft_sim.trajectories import SyntheticMotionConfig
 
 REPO = Path(__file__).resolve().parent.parent
-SHIPPED = sorted(
-    p for p in (REPO / "scenarios").rglob("*.toml") if "faults" not in p.relative_to(REPO).parts
+SHIPPED = sorted(  # scenario files: not the fault presets, not the sweep files
+    p
+    for p in (REPO / "scenarios").rglob("*.toml")
+    if not {"faults", "sweeps"} & set(p.relative_to(REPO).parts)
 )
 FAST_YCB_OBJECTS = (
     "003_cracker_box",

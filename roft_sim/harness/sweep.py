@@ -10,6 +10,7 @@ A sweep file (TOML; paths relative to the file)::
     faults = ["paper"]                         # base fault presets or files
     seeds = [0]
     flow = "auto"                              # poses, masks, init, invalid, include_rgb too
+    flows = ["stored:nvof_1_slow", "dis"]      # optional: flow sources as a grid dimension
 
     [parameter]                                # optional: a swept fault parameter
     name = "delay"                             # delay [frames] | dropout [probability]
@@ -35,6 +36,7 @@ times; kept apart so the summary files are identical whenever the estimates are)
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import json
 import math
 from collections import Counter
@@ -162,7 +164,11 @@ class SweepConfig:
     seeds: tuple[int, ...] = (0,)
     """Run seeds (each a grid value; pooled in the summary)."""
     flow: str = "auto"
-    """Flow source for every cell (see ``roft-sim run --flow``)."""
+    """Flow source for every cell (see ``roft-sim run --flow``); ignored when ``flows`` is
+    given."""
+    flows: tuple[str, ...] = ()
+    """Flow sources as a grid dimension (each a value; the summary gets a ``flow`` column);
+    empty = ``flow`` alone."""
     poses: str = "auto"
     """Pose set for every cell."""
     masks: str = "auto"
@@ -185,6 +191,8 @@ class SweepConfig:
             raise ConfigError("a sweep needs at least one fault configuration (faults = [...])")
         if not self.seeds or any(s < 0 for s in self.seeds):
             raise ConfigError(f"seeds must be a non-empty list of integers >= 0, got {self.seeds}")
+        if len(set(self.flows)) != len(self.flows):
+            raise ConfigError(f"flows lists a source twice: {self.flows}")
         labels = [*self.trackers, *(v.label for v in self.variants)]
         dup = sorted({x for x in labels if labels.count(x) > 1})
         if dup:
@@ -271,7 +279,7 @@ def _tracker_rows(config: SweepConfig) -> list[tuple[str, str, Any]]:
 
 
 def plan_sweep(config: SweepConfig) -> list[SweepCell]:
-    """Every cell of the grid, in (tracker, faults, value, sequence, seed) order.
+    """Every cell of the grid, in (tracker, faults, value, flow, sequence, seed) order.
 
     Raises:
         ConfigError: unknown tracker, fault preset, bad dataset path, inputs a sequence cannot
@@ -292,8 +300,10 @@ def plan_sweep(config: SweepConfig) -> list[SweepCell]:
         include_rgb=config.include_rgb,
         invalid=config.invalid,
     )
+    flows = list(config.flows) or [config.flow]
     for _, seq in sequences:
-        check_inputs(seq, shared)
+        for flow in flows:
+            check_inputs(seq, shared.replace(flow=flow))
     cells = []
     for label, name, tracker_config in trackers:
         for fault_label, faults in base_faults:
@@ -303,7 +313,7 @@ def plan_sweep(config: SweepConfig) -> list[SweepCell]:
                     if value is None or config.parameter is None
                     else apply_parameter(faults, config.parameter, value)
                 )
-                for path, seq in sequences:
+                for flow, (path, seq) in itertools.product(flows, sequences):
                     cell_faults.check_camera_rate(int(seq.fps))
                     for seed in config.seeds:
                         options = shared.replace(
@@ -311,6 +321,7 @@ def plan_sweep(config: SweepConfig) -> list[SweepCell]:
                             tracker_config=tracker_config,
                             faults=cell_faults,
                             seed=int(seed),
+                            flow=flow,
                         )
                         parameter = config.parameter.name if config.parameter else None
                         cells.append(
@@ -339,6 +350,7 @@ def plan_sweep(config: SweepConfig) -> list[SweepCell]:
 SUMMARY_COLUMNS: tuple[Column, ...] = (
     Column("tracker", "tracker", align="left"),
     Column("faults", "faults", align="left"),
+    Column("flow", "flow", align="left"),
     Column("value", "value", "g"),
     Column("sequences", "sequences", "d"),
     Column("frames", "frames", "d"),
@@ -350,6 +362,7 @@ _CELL_COLUMNS: tuple[Column, ...] = (
     Column("cell_id", "cell", align="left"),
     Column("tracker", "tracker", align="left"),
     Column("faults", "faults", align="left"),
+    Column("flow", "flow", align="left"),
     Column("value", "value", "g"),
     Column("sequence", "sequence", align="left"),
     Column("seed", "seed", "d"),
@@ -360,6 +373,7 @@ _CELL_COLUMNS: tuple[Column, ...] = (
 _TIMING_COLUMNS: tuple[Column, ...] = (
     Column("tracker", "tracker", align="left"),
     Column("faults", "faults", align="left"),
+    Column("flow", "flow", align="left"),
     Column("value", "value", "g"),
     Column("steps", "steps", "d"),
     Column("time_median_ms", "step ms (median)", ".3f"),
@@ -391,8 +405,8 @@ class SweepResult:
     """The cells of ``shard`` (empty when ``shard`` is None)."""
 
 
-def _group_key(cell: SweepCell) -> tuple[str, str, float | None]:
-    return (cell.label, cell.fault_label, cell.value)
+def _group_key(cell: SweepCell) -> tuple[str, str, float | None, str]:
+    return (cell.label, cell.fault_label, cell.value, cell.options.flow)
 
 
 def summarize_cells(
@@ -400,23 +414,25 @@ def summarize_cells(
 ) -> tuple[
     list[dict[str, Any]],
     list[dict[str, Any]],
-    dict[tuple[str, str, float | None], SequenceMetrics],
+    dict[tuple[str, str, float | None, str], SequenceMetrics],
 ]:
-    """Summary rows (pooled per tracker x faults x value), timing rows, and the pooled metrics.
+    """Summary rows (pooled per tracker x faults x value x flow), timing rows, and the pooled
+    metrics.
 
     The pooled "ALL" metrics concatenate the per-frame errors of every sequence and seed of a
     group (the reference's ALL row).
     """
-    groups: dict[tuple[str, str, float | None], list[SweepCell]] = {}
+    groups: dict[tuple[str, str, float | None, str], list[SweepCell]] = {}
     for cell in cells:
         groups.setdefault(_group_key(cell), []).append(cell)
     rows, timing, pooled = [], [], {}
     for key, members in groups.items():
         parts = [m for c in members if (m := load_cell_metrics(cells_dir, c.cell_id)) is not None]
-        label, fault_label, value = key
+        label, fault_label, value, flow = key
         row: dict[str, Any] = {
             "tracker": label,
             "faults": fault_label,
+            "flow": flow,
             "value": value,
             "sequences": len({c.sequence_name for c in members}),
         }
@@ -431,6 +447,7 @@ def summarize_cells(
                     {
                         "tracker": label,
                         "faults": fault_label,
+                        "flow": flow,
                         "value": value,
                         "steps": t.steps,
                         "time_median_ms": t.median_ms,
@@ -453,6 +470,7 @@ def _cell_rows(
                 "cell_id": c.cell_id,
                 "tracker": c.label,
                 "faults": c.fault_label,
+                "flow": c.options.flow,
                 "value": c.value,
                 "sequence": c.sequence_name,
                 "seed": c.options.seed,
@@ -463,7 +481,10 @@ def _cell_rows(
     return rows
 
 
-def _columns(parameter: str | None, columns: Sequence[Column]) -> list[Column]:
+def _columns(
+    parameter: str | None, columns: Sequence[Column], *, with_flow: bool = False
+) -> list[Column]:
+    columns = [c for c in columns if with_flow or c.key != "flow"]
     if parameter is None:
         return [c for c in columns if c.key != "value"]
     return [Column(c.key, parameter, c.fmt) if c.key == "value" else c for c in columns]
@@ -582,7 +603,8 @@ def write_summary(
 
     cells_dir = cells_dir if cells_dir is not None else out_dir / CELLS_DIR
     rows, timing, _ = summarize_cells(cells, cells_dir)
-    columns = _columns(parameter, SUMMARY_COLUMNS)
+    with_flow = len({c.options.flow for c in cells}) > 1
+    columns = _columns(parameter, SUMMARY_COLUMNS, with_flow=with_flow)
     written: list[Path] = []
     if plots:
         plot_dir = out_dir / "plots"
@@ -604,7 +626,8 @@ def write_summary(
     md.append(
         f"{len(cells)} cells: {len({c.label for c in cells})} trackers x "
         f"{len({(c.fault_label, c.value) for c in cells})} fault configurations x "
-        f"{len({c.sequence_name for c in cells})} sequences x "
+        + (f"{len({c.options.flow for c in cells})} flow sources x " if with_flow else "")
+        + f"{len({c.sequence_name for c in cells})} sequences x "
         f"{len({c.options.seed for c in cells})} seeds. Metrics pooled over the frames of every "
         "sequence and seed (ALL)."
     )
@@ -619,10 +642,13 @@ def write_summary(
     )
     atomic_write_text(
         out_dir / "cells.csv",
-        csv_table(_columns(parameter, _CELL_COLUMNS), _cell_rows(cells, records)),
+        csv_table(
+            _columns(parameter, _CELL_COLUMNS, with_flow=with_flow), _cell_rows(cells, records)
+        ),
     )
     atomic_write_text(
-        out_dir / "timing.csv", csv_table(_columns(parameter, _TIMING_COLUMNS), timing)
+        out_dir / "timing.csv",
+        csv_table(_columns(parameter, _TIMING_COLUMNS, with_flow=with_flow), timing),
     )
     return rows, written
 

@@ -8,8 +8,8 @@ spec                   source
 =====================  ============================================================================
 ``gt``                 :class:`GroundTruthFlowSource`: exact motion field from depth, gt mask and
                        poses, any stride (``roft_sim.geometry.rigid_flow``)
-``gt+noise``           :class:`NoisyGroundTruthFlowSource`: gt plus a configurable end-point-error
-                       model (:class:`FlowNoiseConfig` defaults)
+``gt+noise[:<s>]``     :class:`NoisyGroundTruthFlowSource`: gt plus a configurable end-point-error
+                       model (:class:`FlowNoiseConfig` defaults; ``:<s>`` sets ``sigma_px``)
 ``dis[:<preset>]``     :class:`DisFlowSource`: OpenCV DIS on the grey rgb images, any stride
 ``nvof-like:<inner>``  :class:`NvofLikeFlowSource`: any source averaged on 4x4 blocks and quantised
                        to NVOF's S10.5 int16, like the reference ``nvof_1_slow`` set
@@ -61,7 +61,13 @@ __all__ = [
     "FLOW_SOURCE_SPECS",
 ]
 
-FLOW_SOURCE_SPECS = ("gt", "gt+noise", "dis[:<preset>]", "nvof-like:<inner>", "stored:<set>")
+FLOW_SOURCE_SPECS = (
+    "gt",
+    "gt+noise[:<sigma_px>]",
+    "dis[:<preset>]",
+    "nvof-like:<inner>",
+    "stored:<set>",
+)
 """The spec forms :func:`make_flow_source` understands."""
 
 NVOF_GRID_PX = 4
@@ -439,8 +445,8 @@ def make_flow_source(spec: str, *, seed: int) -> FlowSource:
     """Builds a flow source from its spec string (see the module docstring).
 
     Args:
-        spec: ``gt``, ``gt+noise``, ``dis``, ``dis:<preset>``, ``nvof-like:<inner spec>`` or
-            ``stored:<set>``.
+        spec: ``gt``, ``gt+noise``, ``gt+noise:<sigma_px>``, ``dis``, ``dis:<preset>``,
+            ``nvof-like:<inner spec>`` or ``stored:<set>``.
         seed: seed of stochastic sources (each frame pair draws from
             ``SeedSequence([seed, from_k, to_k])``).
 
@@ -453,6 +459,17 @@ def make_flow_source(spec: str, *, seed: int) -> FlowSource:
         return GroundTruthFlowSource()
     if kind == "gt+noise" and not arg:
         return NoisyGroundTruthFlowSource(FlowNoiseConfig(), seed)
+    if kind == "gt+noise":
+        try:
+            sigma_px = float(arg)
+        except ValueError:
+            sigma_px = float("nan")
+        if not (np.isfinite(sigma_px) and sigma_px >= 0):
+            raise ConfigError(
+                f"flow source {spec!r}: 'gt+noise:<sigma_px>' needs a number of pixels >= 0, "
+                "e.g. 'gt+noise:1'"
+            )
+        return NoisyGroundTruthFlowSource(FlowNoiseConfig(sigma_px=sigma_px), seed)
     if kind == "dis":
         return DisFlowSource(arg or "medium", seed)
     if kind == "nvof-like" and arg:

@@ -31,6 +31,7 @@ from roft_sim.trajectories.captured import (
 )
 from roft_sim.trajectories.continuous import ContinuousMotionConfig
 from roft_sim.trajectories.placement import PlacementConfig
+from roft_sim.trajectories.synthetic import SyntheticMotionConfig
 
 F64 = NDArray[np.float64]
 
@@ -116,8 +117,12 @@ class MotionDistribution:
 
     def report(self) -> dict[str, object]:
         """JSON-ready: the name, the sample count and each row's percentiles."""
-        keys = ("linear_speed_mps", "angular_speed_dps", "linear_acceleration_mps2")
-        keys += ("angular_acceleration_dps2",)
+        keys = (
+            "linear_speed_mps",
+            "angular_speed_dps",
+            "linear_acceleration_mps2",
+            "angular_acceleration_dps2",
+        )
         out: dict[str, object] = {"name": self.name, "num_samples": self.num_samples}
         for key, (_, p) in zip(keys, self.rows(), strict=True):
             out[key] = {"p50": p.p50, "p95": p.p95, "max": p.max}
@@ -268,7 +273,7 @@ def captured_distribution(
 
 def synthetic_distribution(
     name: str,
-    config: ContinuousMotionConfig | object,
+    config: ContinuousMotionConfig | SyntheticMotionConfig,
     seeds: Sequence[int],
     intrinsics: CameraIntrinsics,
     *,
@@ -289,7 +294,7 @@ def synthetic_distribution(
 
     parts: list[tuple[Trajectory, float]] = []
     for seed in seeds:
-        cfg = replace(config, seed=int(seed))  # type: ignore[type-var]
+        cfg = replace(config, seed=int(seed))
         parts.append((build_trajectory(cfg, intrinsics, object_radius_m=object_radius_m), 1.0))
     return motion_distribution(name, parts)
 

@@ -252,3 +252,22 @@ def test_sweep_cli_checks_inputs_and_repeats_before_writing(dataset, tmp_path, c
     assert main([*args, "--faults", "paper,paper"]) == 2
     assert "more than once" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_flows_are_a_grid_dimension_with_their_own_summary_rows(dataset, tmp_path):
+    config = _config(
+        dataset,
+        trackers=("detector-hold",),
+        parameter=None,
+        flows=("stored:gt", "gt+noise:1"),
+        include_rgb=True,
+    )
+    cells = plan_sweep(config)
+    assert sorted({c.options.flow for c in cells}) == ["gt+noise:1", "stored:gt"]
+    assert len(cells) == 2 * 2  # two flows x two sequences
+    result = run_sweep(config, tmp_path / "s", plots=False)
+    assert sorted(r["flow"] for r in result.summary_rows) == ["gt+noise:1", "stored:gt"]
+    table_head = (tmp_path / "s" / "summary.md").read_text().split("|---")[0]
+    assert "flow" in table_head
+    with pytest.raises(ConfigError, match="flows lists a source twice"):
+        _config(dataset, flows=("dis", "dis"))

@@ -1,0 +1,87 @@
+"""The stress benchmark: trackers x fault presets x metrics under fast captured and synthetic
+motion, a hand occluder, a moving camera and noisy flow (issue 14; docs/running.md).
+
+    python benchmarks/bench_robustness.py --quick --out stress-quick --workers 2
+    python benchmarks/bench_robustness.py --full --out stress-full --workers 16 \
+        --trajectories ../shared/trajectories
+
+Reads the shipped ``scenarios/sweeps/stress.toml`` (or ``--config``), renders each sequence once
+into ``OUT/data`` (reused by later runs), runs the grid with the sweep machinery into
+``OUT/grid`` (parallel, resumable: run the same command again to continue), and prints, per
+split (TUNING, then EVALUATION, named), trackers x presets x metrics pooled over sequences,
+flows and seeds, per flow source, per sequence, and the verdict line. The report is also written
+to ``OUT/report.md``. Captured sequences need the shared trajectories folder
+(``--trajectories``, else ``$ROFT_SIM_TRAJECTORIES``, else ``../shared/trajectories`` beside the
+repository); without it they are skipped with a note.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import os
+import sys
+import time
+from pathlib import Path
+
+from roft_sim.cli.trajectory import trajectories_dir_from_args
+from roft_sim.executors import LocalProcessExecutor
+from roft_sim.harness.stress import (
+    format_stress_report,
+    load_stress_config,
+    run_stress,
+    shipped_stress_config,
+)
+from roft_sim.render.gl_backend import select_gl_backend
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    size = parser.add_mutually_exclusive_group()
+    size.add_argument("--quick", action="store_true", help="the quick size (default)")
+    size.add_argument("--full", action="store_true", help="the full size")
+    parser.add_argument("--config", type=Path, help="stress file (default: the shipped one)")
+    parser.add_argument("--out", type=Path, default=Path("stress-out"), help="output folder")
+    parser.add_argument("--trajectories", type=Path, help="shared captured-motion folder")
+    parser.add_argument("--workers", type=int, default=1, help="local worker processes")
+    parser.add_argument("--no-per-sequence", action="store_true", help="pooled tables only")
+    parser.add_argument("--progress", action="store_true", help="progress bar")
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    select_gl_backend(os.environ)
+    config = load_stress_config(args.config or shipped_stress_config())
+    size_name = "full" if args.full else "quick"
+    size = config.full if args.full else config.quick
+    trajectories = trajectories_dir_from_args(args.trajectories)
+    if not trajectories.is_dir():
+        print(
+            f"note: captured motion folder {trajectories} is absent: the captured sequences are "
+            "skipped (pass --trajectories DIR)",
+            file=sys.stderr,
+        )
+    executor = LocalProcessExecutor(args.workers) if args.workers > 1 else None
+    t0 = time.perf_counter()
+    result = run_stress(
+        config,
+        size,
+        args.out,
+        trajectories_dir=trajectories,
+        size_name=size_name,
+        executor=executor,
+        render_workers=args.workers,
+        progress=args.progress,
+    )
+    report = format_stress_report(
+        result,
+        subject=config.subject,
+        baselines=[b for b in config.baselines if b in result.trackers],
+        per_sequence=not args.no_per_sequence,
+    )
+    (args.out / "report.md").write_text(report, encoding="utf-8")
+    print(report, end="")
+    print(f"\n({time.perf_counter() - t0:.0f} s; results in {args.out})", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,598 @@
+"""The stress benchmark: every tracker under fast captured and synthetic motion, every shipped
+fault preset and noisy flow, judged against the baselines.
+
+A stress file (the shipped one is ``scenarios/sweeps/stress.toml``, found by
+:func:`shipped_stress_config`) names the grid (trackers, flow sources, seeds, the initial
+condition), the scene template (hand occluder, moving camera), the sequences (captured TUM VI
+rooms and CMU hands from the shared trajectories folder, the continuous and bursty synthetic
+profiles), each tagged TUNING or EVALUATION, and two sizes (``quick`` and ``full``).
+
+:func:`run_stress` renders every sequence once into ``<out>/data`` (kept: a second run reuses
+it), runs the grid with the sweep machinery into ``<out>/grid`` (parallel, resumable; the cells
+of a finished grid are never redone) and scores it: trackers x presets x metrics (ADD-AUC, e_t,
+e_a, e_v, e_w, and the NEES of the pose and velocity blocks where a tracker reports
+covariances), pooled per split and per sequence, and a verdict line per split.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+
+from roft_sim.config_files import dataclass_from_mapping, load_toml
+from roft_sim.errors import ConfigError
+from roft_sim.executors import Executor
+from roft_sim.faults.config import list_fault_presets
+from roft_sim.harness.cells import CELLS_DIR, SweepCell, load_cell_metrics
+from roft_sim.harness.options import InitPolicy
+from roft_sim.harness.outputs import ESTIMATES_FILE, load_estimates
+from roft_sim.harness.sweep import SweepConfig, run_sweep
+from roft_sim.metrics import SequenceMetrics, concatenate_metrics
+from roft_sim.metrics.consistency import chi2_bounds, nees, state_error
+from roft_sim.shipped_files import scenarios_dir
+
+__all__ = [
+    "StressSequence",
+    "StressSize",
+    "StressConfig",
+    "StressResult",
+    "Verdict",
+    "shipped_stress_config",
+    "load_stress_config",
+    "stress_scenarios",
+    "run_stress",
+    "score_stress",
+    "format_stress_report",
+    "METRICS",
+]
+
+_log = logging.getLogger(__name__)
+
+Split = Literal["tuning", "evaluation"]
+
+METRICS: tuple[tuple[str, str, str, bool], ...] = (
+    ("add_auc_pct", "ADD-AUC %", ".1f", True),
+    ("rmse_t_cm", "e_t cm", ".2f", False),
+    ("rmse_a_deg", "e_a deg", ".1f", False),
+    ("rmse_v_cmps", "e_v cm/s", ".1f", False),
+    ("rmse_w_dps", "e_w deg/s", ".1f", False),
+    ("nees_pose", "NEES pose", ".1f", False),
+    ("nees_velocity", "NEES vel.", ".1f", False),
+)
+"""``(key, column title, format, higher is better)`` of the report's metrics."""
+
+VERDICT_METRICS: dict[str, str] = {
+    "add_auc_pct": "ADD-AUC",
+    "rmse_t_cm": "e_t",
+    "rmse_a_deg": "e_a",
+}
+"""The metrics the verdict compares, with their names in the verdict line."""
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class StressSequence:
+    """One benchmark sequence (``[[sequences]]``)."""
+
+    name: str
+    """Sequence name (unique)."""
+    split: Split
+    """``tuning`` or ``evaluation`` (the project-wide split)."""
+    motion: Literal["captured", "continuous", "bursty"]
+    """Captured motion from the trajectories folder, or a synthetic profile."""
+    object: str
+    """Registry name of the object."""
+    seed: int
+    """Scenario seed; also the synthetic profile's seed."""
+    capture: str | None = None
+    """Captured only: file under the trajectories folder (``tum/...txt``, ``bvh/...bvh``)."""
+    format: Literal["tum", "bvh"] | None = None
+    """Captured only: file format."""
+    joint: str | None = None
+    """BVH only: the joint followed (relative to the pelvis)."""
+    start_s: float = 0.0
+    """Captured only: where the window starts in the file [s]."""
+
+    def __post_init__(self) -> None:
+        if self.split not in ("tuning", "evaluation"):
+            raise ConfigError(f"sequence {self.name!r}: split must be tuning or evaluation")
+        captured = self.motion == "captured"
+        if captured != (self.capture is not None and self.format is not None):
+            raise ConfigError(
+                f"sequence {self.name!r}: captured motion needs capture = '<file>' and format; "
+                "synthetic motion takes neither"
+            )
+        if self.format == "bvh" and not self.joint:
+            raise ConfigError(f"sequence {self.name!r}: a BVH capture needs joint = '<name>'")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class StressSize:
+    """A size of the benchmark (``[quick]``, ``[full]``)."""
+
+    frames: int
+    """Frames per sequence."""
+    resolution: tuple[int, int]
+    """(width, height) [px] (16:9, the Fast-YCB camera's field of view)."""
+    seeds: tuple[int, ...]
+    """Run seeds."""
+    sequences: tuple[str, ...] = ()
+    """Names of the sequences used (empty = all)."""
+    faults: tuple[str, ...] = ()
+    """Fault presets (empty = every shipped preset)."""
+    flows: tuple[str, ...] = ()
+    """Flow sources (empty = the config's)."""
+
+    def __post_init__(self) -> None:
+        if self.frames < 10:
+            raise ConfigError(f"frames must be >= 10, got {self.frames}")
+        if not self.seeds:
+            raise ConfigError("a size needs at least one seed")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class StressConfig:
+    """The stress file (see the module docstring)."""
+
+    name: str = "stress"
+    """Shown in the report."""
+    trackers: tuple[str, ...]
+    """Tracker rows; those not registered are skipped with a note."""
+    subject: str = "roft"
+    """The tracker the verdict is about."""
+    baselines: tuple[str, ...] = ("detector-hold", "pose-only-ukf")
+    """The trackers it must beat."""
+    flows: tuple[str, ...]
+    """Flow sources (``roft-sim run --flow``): every one is a grid value."""
+    init: InitPolicy = "first-detection"
+    """Initial condition of every cell."""
+    template: Path
+    """Scenario file whose camera motion, scene (hand occluder), render and networks settings
+    every sequence uses (relative to the stress file)."""
+    sequences: tuple[StressSequence, ...]
+    """The sequences."""
+    quick: StressSize
+    """The quick size."""
+    full: StressSize
+    """The full size."""
+    notes: dict[str, Any] = field(default_factory=dict)
+    """Free-form notes."""
+
+    def __post_init__(self) -> None:
+        names = [s.name for s in self.sequences]
+        if len(set(names)) != len(names):
+            raise ConfigError(f"sequence names must be unique, got {names}")
+        for size_name in ("quick", "full"):
+            size: StressSize = getattr(self, size_name)
+            unknown = sorted(set(size.sequences) - set(names))
+            if unknown:
+                raise ConfigError(f"[{size_name}] names unknown sequences {unknown}; have {names}")
+        if self.subject not in self.trackers:
+            raise ConfigError(f"subject {self.subject!r} is not among the trackers")
+
+
+def shipped_stress_config() -> Path:
+    """The shipped stress file, ``<package>/scenarios/sweeps/stress.toml``."""
+    return scenarios_dir() / "sweeps" / "stress.toml"
+
+
+def load_stress_config(path: str | Path) -> StressConfig:
+    """Reads a stress file strictly (the template path is resolved against it)."""
+    path = Path(path)
+    config = dataclass_from_mapping(StressConfig, load_toml(path), where=str(path))
+    template = config.template
+    if not template.is_absolute():
+        template = path.resolve().parent / template
+    return dataclasses.replace(config, template=template)
+
+
+def _trajectory_config(seq: StressSequence, duration_s: float, trajectories_dir: Path) -> Any:
+    from roft_sim.trajectories import (
+        CapturedMotionConfig,
+        ContinuousMotionConfig,
+        SyntheticMotionConfig,
+    )
+
+    if seq.motion == "continuous":
+        return ContinuousMotionConfig(seed=seq.seed, duration_s=duration_s)
+    if seq.motion == "bursty":
+        return SyntheticMotionConfig(seed=seq.seed, duration_s=max(duration_s, 2.0))
+    assert seq.capture is not None and seq.format is not None  # checked in __post_init__
+    tum = seq.format == "tum"
+    return CapturedMotionConfig(
+        path=trajectories_dir / seq.capture,
+        format=seq.format,
+        joint=seq.joint,
+        relative_to=None if tum else "CC_Base_Pelvis",
+        lowpass_hz=10.0,
+        remove_drift_window_s=2.0 if tum else None,
+        window_s=(seq.start_s, seq.start_s + duration_s + 0.5),
+    )
+
+
+def stress_scenarios(
+    config: StressConfig, size: StressSize, trajectories_dir: Path
+) -> tuple[list[Any], list[str]]:
+    """The scenarios of ``size`` and notes on the sequences skipped (captured motion absent).
+
+    Each scenario is the template with the sequence's name, object, motion and seed, the
+    Fast-YCB camera at ``size.resolution`` (the template's camera motion kept) and
+    ``size.frames`` frames.
+    """
+    from roft_sim.scenario import FAST_YCB_CAMERA_CONFIG, ObjectConfig, load_scenario
+
+    template = load_scenario(config.template)
+    width, height = size.resolution
+    k = FAST_YCB_CAMERA_CONFIG.intrinsics.resized(width, height)
+    camera = dataclasses.replace(
+        FAST_YCB_CAMERA_CONFIG,
+        width_px=k.width_px,
+        height_px=k.height_px,
+        fx_px=k.fx_px,
+        fy_px=k.fy_px,
+        cx_px=k.cx_px,
+        cy_px=k.cy_px,
+        motion=template.camera.motion,
+    )
+    chosen = [s for s in config.sequences if not size.sequences or s.name in size.sequences]
+    duration_s = size.frames / camera.fps
+    scenarios, skipped = [], []
+    for seq in chosen:
+        if seq.motion == "captured":
+            path = trajectories_dir / str(seq.capture)
+            if not path.is_file():
+                skipped.append(
+                    f"{seq.name} ({seq.split}): captured motion {path} is absent (pass "
+                    "--trajectories DIR, the shared trajectories folder); skipped"
+                )
+                continue
+        scenarios.append(
+            dataclasses.replace(
+                template,
+                name=seq.name,
+                seed=seq.seed,
+                camera=camera,
+                object=ObjectConfig(name=seq.object),
+                trajectory=_trajectory_config(seq, duration_s, trajectories_dir),
+                frames=size.frames,
+                duration_s=None,
+            )
+        )
+    return scenarios, skipped
+
+
+def render_stress_sequences(
+    scenarios: Sequence[Any], data_dir: Path, *, workers: int = 1
+) -> list[Path]:
+    """Renders the scenarios into ``data_dir`` (Fast-YCB layout), keeping what is already
+    there: a finished sequence is not rendered again (``resume``)."""
+    from roft_sim.generation.runner import GenerationOptions, generate_dataset
+
+    data_dir.mkdir(parents=True, exist_ok=True)
+    summary = generate_dataset(
+        list(scenarios),
+        data_dir,
+        GenerationOptions(workers=workers, resume=True, progress=False),
+    )
+    _log.info("stress data: %d frames rendered into %s", summary.frames_generated, data_dir)
+    return [data_dir / s.name for s in scenarios]
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Verdict:
+    """Whether the subject beats every baseline on every verdict metric, preset by preset."""
+
+    split: str
+    """The split judged."""
+    wins: list[str]
+    """Presets where it does."""
+    fails: list[str]
+    """``preset: which metric against which baseline`` where it does not."""
+
+    def line(self, subject: str, baselines: Sequence[str]) -> str:
+        """The verdict sentence."""
+        total = len(self.wins) + len({f.split(":")[0] for f in self.fails})
+        text = (
+            f"{self.split.upper()}: {subject} beats {' and '.join(baselines)} on ADD-AUC, e_t, "
+            f"e_a under {len(self.wins)}/{total} presets"
+        )
+        return text + ("; fails: " + "; ".join(self.fails) if self.fails else "")
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class StressResult:
+    """What :func:`run_stress` produced."""
+
+    out_dir: Path
+    """The benchmark folder."""
+    size_name: str
+    """``quick`` or ``full`` (or a custom label)."""
+    trackers: tuple[str, ...]
+    """The trackers run."""
+    notes: tuple[str, ...]
+    """Skipped trackers and sequences, with the reason."""
+    splits: dict[str, list[str]]
+    """Sequence names per split."""
+    pooled: dict[tuple[str, str, str], dict[str, float]]
+    """``(split, tracker, preset) -> metrics`` pooled over sequences, flows and seeds."""
+    per_sequence: dict[tuple[str, str, str], dict[str, float]]
+    """``(sequence, tracker, preset) -> metrics`` pooled over flows and seeds."""
+    per_flow: dict[tuple[str, str, str], dict[str, float]]
+    """``(split, tracker, flow) -> metrics`` pooled over presets, sequences and seeds."""
+    verdicts: dict[str, Verdict]
+    """Per split."""
+    presets: tuple[str, ...]
+    """The fault presets, in order."""
+    flows: tuple[str, ...]
+    """The flow sources."""
+
+
+def _nees_blocks(cells_dir: Path, cell: SweepCell, cache: dict[str, Any]) -> tuple[Any, Any]:
+    """Per-frame NEES of the pose (6-D) and velocity (6-D) blocks of a cell's estimates, or
+    ``(None, None)`` without covariances."""
+    from roft_sim.datasets import open_sequence
+
+    path = cells_dir / cell.cell_id / cell.sequence_name / ESTIMATES_FILE
+    if not path.is_file():
+        path = next((cells_dir / cell.cell_id).glob(f"**/{ESTIMATES_FILE}"), path)
+    if not path.is_file():
+        return None, None
+    estimates = [e for e in load_estimates(path) if e.valid and e.covariance is not None]
+    if not estimates:
+        return None, None
+    if cell.sequence_path not in cache:
+        cache[cell.sequence_path] = open_sequence(cell.sequence_path).ground_truth()
+    gt = cache[cell.sequence_path]
+    if gt is None:
+        return None, None
+    idx = np.array([e.k for e in estimates])
+    errors = state_error(
+        np.stack([e.T_cam_obj for e in estimates]),
+        np.stack([e.v_obj_mps for e in estimates]),
+        np.stack([e.w_radps for e in estimates]),
+        gt.T_cam_obj[idx],
+        gt.v_obj_mps[idx],
+        gt.w_radps[idx],
+    )
+    covs = np.stack([e.covariance for e in estimates])  # type: ignore[misc]
+    try:
+        pose = nees(errors[:, :6], covs[:, :6, :6])
+        velocity = nees(errors[:, 6:], covs[:, 6:, 6:])
+    except ValueError:
+        return None, None
+    return pose, velocity
+
+
+def _scalars(
+    m: SequenceMetrics, nees_pose: list[Any], nees_velocity: list[Any]
+) -> dict[str, float]:
+    summary = m.summary()
+    out = {
+        key: float("nan") if summary.get(key) is None else float(summary[key])
+        for key, *_ in METRICS[:5]
+    }
+    out["nees_pose"] = float(np.mean(np.concatenate(nees_pose))) if nees_pose else float("nan")
+    out["nees_velocity"] = (
+        float(np.mean(np.concatenate(nees_velocity))) if nees_velocity else float("nan")
+    )
+    return out
+
+
+def score_stress(
+    cells: Sequence[SweepCell],
+    cells_dir: Path,
+    split_of: Mapping[str, str],
+    *,
+    subject: str,
+    baselines: Sequence[str],
+) -> tuple[
+    dict[tuple[str, str, str], dict[str, float]],
+    dict[tuple[str, str, str], dict[str, float]],
+    dict[tuple[str, str, str], dict[str, float]],
+    dict[str, Verdict],
+]:
+    """Pooled metrics per (split, tracker, preset), per (sequence, tracker, preset) and per
+    (split, tracker, flow), and the verdict per split.
+
+    Pooling concatenates the per-frame errors (the reference's ALL row); NEES is the mean over
+    the pooled frames of the pose and velocity blocks of the reported covariance.
+    """
+    parts: dict[tuple[str, ...], list[tuple[SequenceMetrics, Any, Any]]] = {}
+    gt_cache: dict[str, Any] = {}
+    for cell in cells:
+        m = load_cell_metrics(cells_dir, cell.cell_id)
+        if m is None:
+            continue
+        pose, vel = _nees_blocks(cells_dir, cell, gt_cache)
+        split = split_of[cell.sequence_name]
+        entry = (m, pose, vel)
+        parts.setdefault(("split", split, cell.label, cell.fault_label), []).append(entry)
+        parts.setdefault(("seq", cell.sequence_name, cell.label, cell.fault_label), []).append(
+            entry
+        )
+        parts.setdefault(("flow", split, cell.label, cell.options.flow), []).append(entry)
+    Scores = dict[tuple[str, str, str], dict[str, float]]
+    pooled: Scores = {}
+    per_sequence: Scores = {}
+    per_flow: Scores = {}
+    for group, entries in parts.items():
+        scalars = _scalars(
+            concatenate_metrics([e[0] for e in entries]),
+            [e[1] for e in entries if e[1] is not None],
+            [e[2] for e in entries if e[2] is not None],
+        )
+        target = {"split": pooled, "seq": per_sequence, "flow": per_flow}[group[0]]
+        target[(group[1], group[2], group[3])] = scalars
+    verdicts = {}
+    presets = list(dict.fromkeys(c.fault_label for c in cells))
+    for split in sorted(set(split_of.values())):
+        wins, fails = [], []
+        for preset in presets:
+            own = pooled.get((split, subject, preset))
+            if own is None:
+                continue
+            lost = []
+            for base in baselines:
+                other = pooled.get((split, base, preset))
+                if other is None:
+                    continue
+                for key, label in VERDICT_METRICS.items():
+                    a, b = own[key], other[key]
+                    better = (a > b) if key == "add_auc_pct" else (a < b)
+                    if not (math.isfinite(a) and better):
+                        lost.append(f"{label} {a:.3g} vs {base} {b:.3g}")
+            if lost:
+                fails.append(f"{preset}: " + ", ".join(lost))
+            else:
+                wins.append(preset)
+        verdicts[split] = Verdict(split=split, wins=wins, fails=fails)
+    return pooled, per_sequence, per_flow, verdicts
+
+
+def run_stress(
+    config: StressConfig,
+    size: StressSize,
+    out_dir: str | Path,
+    *,
+    trajectories_dir: Path,
+    size_name: str = "quick",
+    executor: Executor | None = None,
+    render_workers: int = 1,
+    progress: bool = False,
+) -> StressResult:
+    """Renders (once), runs the grid (resumable) and scores it; see the module docstring.
+
+    Raises:
+        ConfigError: nothing to run (no sequence left, or no registered tracker).
+    """
+    from roft_sim.trackers import discover_trackers
+
+    out = Path(out_dir)
+    registered = discover_trackers()
+    notes: list[str] = []
+    trackers = []
+    for name in config.trackers:
+        if name in registered:
+            trackers.append(name)
+        else:
+            notes.append(f"tracker {name!r} is not registered on this install; skipped")
+    if config.subject not in trackers:
+        raise ConfigError(f"the subject tracker {config.subject!r} is not registered")
+    scenarios, skipped = stress_scenarios(config, size, trajectories_dir)
+    notes += skipped
+    if not scenarios:
+        raise ConfigError("no stress sequence left to run (every one was skipped)")
+    paths = render_stress_sequences(scenarios, out / "data", workers=render_workers)
+    faults = size.faults or tuple(name for name, _ in list_fault_presets())
+    flows = size.flows or config.flows
+    sweep = SweepConfig(
+        name=f"{config.name} ({size_name})",
+        datasets=tuple(paths),
+        trackers=tuple(trackers),
+        faults=faults,
+        flows=flows,
+        seeds=size.seeds,
+        init=config.init,
+    )
+    result = run_sweep(sweep, out / "grid", executor=executor, progress=progress, plots=False)
+    split_of = {s.name: s.split for s in config.sequences}
+    pooled, per_sequence, per_flow, verdicts = score_stress(
+        result.cells,
+        out / "grid" / CELLS_DIR,
+        split_of,
+        subject=config.subject,
+        baselines=[b for b in config.baselines if b in trackers],
+    )
+    names = [s.name for s in scenarios]
+    splits: dict[str, list[str]] = {}
+    for name in names:
+        splits.setdefault(split_of[name], []).append(name)
+    return StressResult(
+        out_dir=out,
+        size_name=size_name,
+        trackers=tuple(trackers),
+        notes=tuple(notes),
+        splits=splits,
+        pooled=pooled,
+        per_sequence=per_sequence,
+        per_flow=per_flow,
+        verdicts=verdicts,
+        presets=tuple(faults),
+        flows=tuple(flows),
+    )
+
+
+def _table(
+    title: str,
+    rows: list[tuple[str, str, dict[str, float]]],
+    first: str,
+) -> list[str]:
+    head = f"| {first} | tracker | " + " | ".join(t for _, t, _, _ in METRICS) + " |"
+    lines = [title, "", head, "|" + "---|" * (len(METRICS) + 2)]
+    for a, b, values in rows:
+        cells = []
+        for key, _, fmt, _ in METRICS:
+            v = values.get(key, float("nan"))
+            cells.append("-" if not math.isfinite(v) else format(v, fmt))
+        lines.append(f"| {a} | {b} | " + " | ".join(cells) + " |")
+    return [*lines, ""]
+
+
+def format_stress_report(
+    result: StressResult, *, subject: str, baselines: Sequence[str], per_sequence: bool = True
+) -> str:
+    """The report: per split (TUNING first, then EVALUATION), trackers x presets pooled, per
+    flow source, per sequence (pooled over presets... per preset), and the verdict lines."""
+    lo, hi = chi2_bounds(6, 1)
+    out = [
+        f"# Stress benchmark ({result.size_name}): {len(result.trackers)} trackers x "
+        f"{len(result.presets)} fault presets x {len(result.flows)} flow sources",
+        "",
+        f"Flow sources: {', '.join(result.flows)}. NEES: mean over frames of the 6-D pose and "
+        f"velocity blocks of the reported covariance (single-frame 95 % band of chi2(6): "
+        f"[{lo:.2f}, {hi:.2f}]; '-' = no covariance).",
+    ]
+    out += [f"Note: {n}" for n in result.notes]
+    out.append("")
+    for split in ("tuning", "evaluation"):
+        if split not in result.splits:
+            continue
+        names = result.splits[split]
+        out.append(f"## {split.upper()} split: {', '.join(names)}")
+        out.append("")
+        rows = [
+            (preset, tracker, result.pooled[(split, tracker, preset)])
+            for preset in result.presets
+            for tracker in result.trackers
+            if (split, tracker, preset) in result.pooled
+        ]
+        title = f"### {split.upper()}: pooled over sequences, flows and seeds"
+        out += _table(title, rows, "preset")
+        rows = [
+            (flow, tracker, result.per_flow[(split, tracker, flow)])
+            for flow in result.flows
+            for tracker in result.trackers
+            if (split, tracker, flow) in result.per_flow
+        ]
+        out += _table(f"### {split.upper()}: per flow source (pooled over presets)", rows, "flow")
+        if per_sequence:
+            for name in names:
+                rows = [
+                    (preset, tracker, result.per_sequence[(name, tracker, preset)])
+                    for preset in result.presets
+                    for tracker in result.trackers
+                    if (name, tracker, preset) in result.per_sequence
+                ]
+                out += _table(f"### {split.upper()} sequence {name}", rows, "preset")
+    out.append("## Verdict")
+    out.append("")
+    for split in ("tuning", "evaluation"):
+        if split in result.verdicts:
+            out.append(result.verdicts[split].line(subject, baselines))
+    return "\n".join(out) + "\n"

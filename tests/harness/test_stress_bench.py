@@ -1,0 +1,111 @@
+"""The stress benchmark: the shipped stress file, its scenarios, the scoring and verdict, and a
+small run that checks the ordering (slow)."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from roft_sim.errors import ConfigError
+from roft_sim.faults.config import list_fault_presets
+from roft_sim.harness.stress import (
+    StressSize,
+    Verdict,
+    format_stress_report,
+    load_stress_config,
+    run_stress,
+    shipped_stress_config,
+    stress_scenarios,
+)
+from roft_sim.trajectories import (
+    CapturedMotionConfig,
+    ContinuousMotionConfig,
+    SyntheticMotionConfig,
+)
+
+
+def test_shipped_stress_file_covers_the_split_motions_and_flows():
+    config = load_stress_config(shipped_stress_config())
+    assert config.template.is_file()
+    splits = {s.split for s in config.sequences}
+    assert splits == {"tuning", "evaluation"}
+    assert len(config.sequences) >= 6
+    motions = {(s.motion, s.format) for s in config.sequences}
+    assert {("captured", "tum"), ("captured", "bvh"), ("continuous", None), ("bursty", None)} <= (
+        motions
+    )
+    for s in config.sequences:  # the project-wide split of captures, seeds and objects
+        if s.split == "tuning":
+            assert s.seed < 10 and s.object in ("003_cracker_box", "004_sugar_box")
+            assert s.capture is None or "room1" in s.capture or "002_05" in s.capture
+        else:
+            assert 100 <= s.seed < 110 and s.object not in ("003_cracker_box", "004_sugar_box")
+            assert s.capture is None or "room1" not in s.capture and "002_05" not in s.capture
+    assert {"dis", "gt+noise:0.5", "gt+noise:1", "gt+noise:2"} <= set(config.flows)
+    assert any(f.startswith("stored:nvof") for f in config.flows)
+    assert {"roft", "roft-reference", "detector-hold", "pose-only-ukf", "naive-delay"} <= set(
+        config.trackers
+    )
+    assert config.full.faults == ()  # every shipped preset
+    assert len(list_fault_presets()) >= 6
+
+
+def test_scenarios_skip_captured_motion_without_the_shared_folder(tmp_path):
+    config = load_stress_config(shipped_stress_config())
+    scenarios, skipped = stress_scenarios(config, config.full, tmp_path / "absent")
+    captured = [s for s in config.sequences if s.motion == "captured"]
+    assert len(skipped) == len(captured) and all("is absent" in n for n in skipped)
+    assert len(scenarios) == len(config.sequences) - len(captured)
+    for scenario in scenarios:
+        assert scenario.intrinsics.width_px == 640 and scenario.n_frames == config.full.frames
+        assert scenario.scene.hand.enabled and scenario.camera.motion is not None
+        assert isinstance(scenario.trajectory, ContinuousMotionConfig | SyntheticMotionConfig)
+
+
+def test_scenarios_replay_captured_motion(shared_trajectories_dir: Path):
+    config = load_stress_config(shipped_stress_config())
+    scenarios, skipped = stress_scenarios(config, config.quick, shared_trajectories_dir)
+    assert skipped == [] and len(scenarios) == len(config.quick.sequences)
+    captured = [s for s in scenarios if isinstance(s.trajectory, CapturedMotionConfig)]
+    assert {s.name for s in captured} == {"tum-room1", "bvh-002_06"}
+
+
+def test_verdict_line_names_the_failures():
+    verdict = Verdict(split="evaluation", wins=["paper"], fails=["chaos: e_t 9 vs detector-hold 6"])
+    line = verdict.line("roft", ["detector-hold", "pose-only-ukf"])
+    assert line.startswith("EVALUATION: roft beats detector-hold and pose-only-ukf on ADD-AUC")
+    assert "under 1/2 presets" in line and "fails: chaos: e_t 9" in line
+    with pytest.raises(ConfigError, match="unknown sequences"):
+        config = load_stress_config(shipped_stress_config())
+        dataclasses.replace(config, quick=dataclasses.replace(config.quick, sequences=("x",)))
+
+
+@pytest.mark.slow
+@pytest.mark.render
+def test_small_benchmark_orders_roft_above_the_baselines(tmp_path):
+    """Two synthetic EVALUATION sequences (continuous and bursty), three presets, the default
+    inputs: ROFT must beat holding the last detection and the pose-only UKF on ADD-AUC."""
+    config = load_stress_config(shipped_stress_config())
+    config = dataclasses.replace(
+        config, trackers=("roft", "detector-hold", "pose-only-ukf"), baselines=config.baselines
+    )
+    size = StressSize(
+        frames=60,
+        resolution=(320, 180),
+        seeds=(0,),
+        sequences=("continuous-s103", "bursty-s104"),
+        faults=("paper", "bursts", "camera-drops"),
+        flows=("stored:nvof_1_slow",),
+    )
+    result = run_stress(config, size, tmp_path, trajectories_dir=tmp_path / "none")
+    print(format_stress_report(result, subject="roft", baselines=list(config.baselines)))
+    for preset in size.faults:
+        roft = result.pooled[("evaluation", "roft", preset)]["add_auc_pct"]
+        for base in config.baselines:
+            other = result.pooled[("evaluation", base, preset)]["add_auc_pct"]
+            assert np.isfinite(roft) and roft > other, (
+                f"{preset}: roft {roft:.1f} <= {base} {other:.1f}"
+            )
