@@ -39,7 +39,8 @@ EVALUATION_SEEDS = tuple(range(100, 110))
 
 def _angular_speed_dps(config: ContinuousMotionConfig | SyntheticMotionConfig) -> np.ndarray:
     sample = sample_at_rate(build_trajectory(config, FAST_YCB_CAMERA), 30.0)
-    return np.degrees(np.linalg.norm(sample.w_radps, axis=-1))
+    speed_dps: np.ndarray = np.degrees(np.linalg.norm(sample.w_radps, axis=-1))
+    return speed_dps
 
 
 @pytest.mark.parametrize("seed", [0, 7, 101])
@@ -151,6 +152,7 @@ def test_fast_ycb_preset_replays_captured_motion_when_present(
 ) -> None:
     for path in preset_scenario_paths("fast-ycb"):
         scenario = load_scenario(path)
+        assert isinstance(scenario.trajectory, HandMotionConfig)
         config = dataclasses.replace(scenario.trajectory, trajectories_dir=shared_trajectories_dir)
         trajectory = build_trajectory(config, scenario.intrinsics, object_radius_m=0.1)
         assert isinstance(trajectory, CapturedTrajectory)
