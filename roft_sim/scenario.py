@@ -26,7 +26,12 @@ from roft_sim.errors import ConfigError
 from roft_sim.geometry import CameraIntrinsics
 from roft_sim.scene.config import CameraMotionConfig, RenderConfig, SceneConfig
 from roft_sim.sensors.networks import NetworksConfig
-from roft_sim.trajectories import HandMotionConfig, TrajectoryConfig, resolve_hand_motion
+from roft_sim.trajectories import (
+    CapturedMotionConfig,
+    HandMotionConfig,
+    TrajectoryConfig,
+    resolve_hand_motion,
+)
 
 __all__ = ["CameraConfig", "ObjectConfig", "Scenario", "load_scenario", "FAST_YCB_CAMERA_CONFIG"]
 
@@ -224,10 +229,9 @@ def load_scenario(path: str | Path) -> Scenario:
     obj = scenario.object
     if obj.mesh is not None and not obj.mesh.is_absolute():
         obj = dataclasses.replace(obj, mesh=base_dir / obj.mesh)
-    trajectory = scenario.trajectory
-    traj_path = getattr(trajectory, "path", None)
-    if isinstance(traj_path, Path) and not traj_path.is_absolute():
-        trajectory = dataclasses.replace(trajectory, path=base_dir / traj_path)
+    trajectory: TrajectoryConfig = scenario.trajectory
+    if isinstance(trajectory, CapturedMotionConfig) and not trajectory.path.is_absolute():
+        trajectory = dataclasses.replace(trajectory, path=base_dir / trajectory.path)
     if isinstance(trajectory, HandMotionConfig):  # captured when present, else fitted
         trajectory, reason = resolve_hand_motion(trajectory.with_base_dir(base_dir))
         _log.info("%s: hand-motion trajectory: %s", path.name, reason)
