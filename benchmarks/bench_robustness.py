@@ -37,9 +37,9 @@ from roft_sim.render.gl_backend import select_gl_backend
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    size = parser.add_mutually_exclusive_group()
-    size.add_argument("--quick", action="store_true", help="the quick size (default)")
-    size.add_argument("--full", action="store_true", help="the full size")
+    sizes = parser.add_mutually_exclusive_group()
+    sizes.add_argument("--quick", action="store_true", help="the quick size (default)")
+    sizes.add_argument("--full", action="store_true", help="the full size")
     parser.add_argument("--config", type=Path, help="stress file (default: the shipped one)")
     parser.add_argument("--out", type=Path, default=Path("stress-out"), help="output folder")
     parser.add_argument("--trajectories", type=Path, help="shared captured-motion folder")

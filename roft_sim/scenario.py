@@ -14,6 +14,7 @@ Randomness: :meth:`Scenario.seed_sequence` gives each subsystem its own stream d
 from __future__ import annotations
 
 import dataclasses
+import logging
 import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -25,9 +26,16 @@ from roft_sim.errors import ConfigError
 from roft_sim.geometry import CameraIntrinsics
 from roft_sim.scene.config import CameraMotionConfig, RenderConfig, SceneConfig
 from roft_sim.sensors.networks import NetworksConfig
-from roft_sim.trajectories import HandMotionConfig, TrajectoryConfig
+from roft_sim.trajectories import (
+    CapturedMotionConfig,
+    HandMotionConfig,
+    TrajectoryConfig,
+    resolve_hand_motion,
+)
 
 __all__ = ["CameraConfig", "ObjectConfig", "Scenario", "load_scenario", "FAST_YCB_CAMERA_CONFIG"]
+
+_log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -118,7 +126,8 @@ class Scenario:
     object: ObjectConfig
     """The object (``[object]``)."""
     trajectory: TrajectoryConfig
-    """The object's motion (``[trajectory]``, ``kind = "synthetic" | "file"``), placed in front
+    """The object's motion (``[trajectory]``, ``kind = "synthetic" | "continuous" | "file" |
+    "hand-motion"``; the last is resolved by :func:`load_scenario`), placed in front
     of the camera at rest."""
     scene: SceneConfig = field(default_factory=SceneConfig)
     """Table, background, lights and hand (``[scene]``)."""
@@ -200,7 +209,10 @@ def load_scenario(path: str | Path) -> Scenario:
     """Reads a scenario TOML file strictly.
 
     Relative paths in it (``[object] mesh``, ``[trajectory] path``) are resolved here, against
-    the file's folder, and stored absolute (``[camera.motion] path`` too).
+    the file's folder, and stored absolute (``[camera.motion] path`` too). A ``kind = "hand-motion"`` trajectory is resolved
+    here too, into the motion it stands for (the captured file when present, else the fitted
+    continuous profile; logged), so that the scenario, and the metadata of what it generates,
+    say which motion was used.
 
     Raises:
         ConfigError: missing file, invalid TOML, unknown key, missing key or bad value; the
@@ -217,13 +229,12 @@ def load_scenario(path: str | Path) -> Scenario:
     obj = scenario.object
     if obj.mesh is not None and not obj.mesh.is_absolute():
         obj = dataclasses.replace(obj, mesh=base_dir / obj.mesh)
-    trajectory = scenario.trajectory
-    traj_path = getattr(trajectory, "path", None)
-    if isinstance(traj_path, Path) and not traj_path.is_absolute():
-        # mypy types replace() on a union of dataclasses with the meet of the field types (Never)
-        trajectory = dataclasses.replace(trajectory, path=base_dir / traj_path)  # type: ignore[arg-type]
-    if isinstance(trajectory, HandMotionConfig):
-        trajectory = trajectory.with_base_dir(base_dir)
+    trajectory: TrajectoryConfig = scenario.trajectory
+    if isinstance(trajectory, CapturedMotionConfig) and not trajectory.path.is_absolute():
+        trajectory = dataclasses.replace(trajectory, path=base_dir / trajectory.path)
+    if isinstance(trajectory, HandMotionConfig):  # captured when present, else fitted
+        trajectory, reason = resolve_hand_motion(trajectory.with_base_dir(base_dir))
+        _log.info("%s: hand-motion trajectory: %s", path.name, reason)
     camera = scenario.camera
     motion_path = getattr(camera.motion, "path", None)
     if isinstance(motion_path, Path) and not motion_path.is_absolute():

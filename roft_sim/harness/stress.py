@@ -33,6 +33,7 @@ from roft_sim.faults.config import list_fault_presets
 from roft_sim.harness.cells import CELLS_DIR, SweepCell, load_cell_metrics
 from roft_sim.harness.options import InitPolicy
 from roft_sim.harness.outputs import ESTIMATES_FILE, load_estimates
+from roft_sim.harness.robust_start import RobustStartConfig
 from roft_sim.harness.sweep import SweepConfig, run_sweep
 from roft_sim.metrics import SequenceMetrics, concatenate_metrics
 from roft_sim.metrics.consistency import chi2_bounds, nees, state_error
@@ -152,6 +153,8 @@ class StressConfig:
     """Flow sources (``roft-sim run --flow``): every one is a grid value."""
     init: InitPolicy = "first-detection"
     """Initial condition of every cell."""
+    robust_start: RobustStartConfig = field(default_factory=RobustStartConfig)
+    """Settings of ``init = "robust"``."""
     template: Path
     """Scenario file whose camera motion, scene (hand occluder), render and networks settings
     every sequence uses (relative to the stress file)."""
@@ -431,7 +434,7 @@ def score_stress(
         target[(group[1], group[2], group[3])] = scalars
     verdicts = {}
     presets = list(dict.fromkeys(c.fault_label for c in cells))
-    for split in sorted(set(split_of.values())):
+    for split in sorted({split_of[c.sequence_name] for c in cells}):
         wins, fails = [], []
         for preset in presets:
             own = pooled.get((split, subject, preset))
@@ -499,6 +502,7 @@ def run_stress(
         flows=flows,
         seeds=size.seeds,
         init=config.init,
+        robust_start=config.robust_start,
     )
     result = run_sweep(sweep, out / "grid", executor=executor, progress=progress, plots=False)
     split_of = {s.name: s.split for s in config.sequences}

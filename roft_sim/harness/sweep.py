@@ -61,6 +61,7 @@ from roft_sim.harness.cells import (
 from roft_sim.harness.inputs import check_inputs
 from roft_sim.harness.options import InitPolicy, RunOptions
 from roft_sim.harness.outputs import DELIVERIES_FILE, load_deliveries
+from roft_sim.harness.robust_start import RobustStartConfig
 from roft_sim.harness.run_dataset import find_sequences
 from roft_sim.metrics import SequenceMetrics, concatenate_metrics, step_time_stats
 from roft_sim.report.plotting import Panel, Series, line_figure, save_figure
@@ -175,6 +176,8 @@ class SweepConfig:
     """Mask set for every cell."""
     init: InitPolicy = "first-detection"
     """Initial condition."""
+    robust_start: RobustStartConfig = field(default_factory=RobustStartConfig)
+    """Settings of ``init = "robust"`` (``[robust_start]``)."""
     invalid: Literal["failure", "exclude", "as_given"] = "failure"
     """How frames without a pose are scored."""
     include_rgb: bool = True
@@ -297,6 +300,7 @@ def plan_sweep(config: SweepConfig) -> list[SweepCell]:
         poses=config.poses,
         masks=config.masks,
         init=config.init,
+        robust_start=config.robust_start,
         include_rgb=config.include_rgb,
         invalid=config.invalid,
     )

@@ -254,7 +254,9 @@ def test_sweep_cli_checks_inputs_and_repeats_before_writing(dataset, tmp_path, c
     assert not out.exists()
 
 
-def test_flows_are_a_grid_dimension_with_their_own_summary_rows(dataset, tmp_path):
+def test_flows_are_a_grid_dimension_with_their_own_summary_rows(
+    dataset: Path, tmp_path: Path
+) -> None:
     config = _config(
         dataset,
         trackers=("detector-hold",),

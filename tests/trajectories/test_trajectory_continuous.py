@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from roft_sim.cli import main
+from roft_sim.config_files import dataclass_from_mapping, load_toml
 from roft_sim.errors import ConfigError
 from roft_sim.generation.presets import preset_scenario_paths
 from roft_sim.scenario import load_scenario
@@ -34,12 +35,23 @@ from roft_sim.trajectories.statistics import (
 )
 
 TUNING_SEEDS = tuple(range(10))
+
+
+def _hand_motion(path: Path) -> HandMotionConfig:
+    """The ``[trajectory]`` of a shipped scenario file as written (``load_scenario`` resolves
+    it into the motion it stands for)."""
+    config = dataclass_from_mapping(HandMotionConfig, load_toml(path)["trajectory"], where="t")
+    assert isinstance(config, HandMotionConfig)
+    return config
+
+
 EVALUATION_SEEDS = tuple(range(100, 110))
 
 
 def _angular_speed_dps(config: ContinuousMotionConfig | SyntheticMotionConfig) -> np.ndarray:
     sample = sample_at_rate(build_trajectory(config, FAST_YCB_CAMERA), 30.0)
-    return np.degrees(np.linalg.norm(sample.w_radps, axis=-1))
+    speed_dps: np.ndarray = np.degrees(np.linalg.norm(sample.w_radps, axis=-1))
+    return speed_dps
 
 
 @pytest.mark.parametrize("seed", [0, 7, 101])
@@ -124,8 +136,7 @@ def test_the_defaults_are_as_good_as_a_refit(shared_trajectories_dir: Path) -> N
 
 
 def test_hand_motion_falls_back_to_the_continuous_profile(tmp_path: Path) -> None:
-    config = load_scenario(preset_scenario_paths("fast-ycb")[0]).trajectory
-    assert isinstance(config, HandMotionConfig)
+    config = _hand_motion(preset_scenario_paths("fast-ycb")[0])
     missing = dataclasses.replace(config, trajectories_dir=tmp_path)
     resolved, reason = resolve_hand_motion(missing)
     assert resolved == config.continuous and "absent" in reason
@@ -135,8 +146,7 @@ def test_hand_motion_falls_back_to_the_continuous_profile(tmp_path: Path) -> Non
 
 def test_hand_motion_bursty_reproduces_the_earlier_motion_exactly() -> None:
     for path in preset_scenario_paths("fast-ycb"):
-        config = load_scenario(path).trajectory
-        assert isinstance(config, HandMotionConfig)
+        config = _hand_motion(path)
         t = np.arange(880) / 30.0
         old = build_trajectory(config.bursty, FAST_YCB_CAMERA, object_radius_m=0.1).sample(t)
         new = build_trajectory(
@@ -151,11 +161,23 @@ def test_fast_ycb_preset_replays_captured_motion_when_present(
 ) -> None:
     for path in preset_scenario_paths("fast-ycb"):
         scenario = load_scenario(path)
-        config = dataclasses.replace(scenario.trajectory, trajectories_dir=shared_trajectories_dir)
+        config = dataclasses.replace(_hand_motion(path), trajectories_dir=shared_trajectories_dir)
         trajectory = build_trajectory(config, scenario.intrinsics, object_radius_m=0.1)
         assert isinstance(trajectory, CapturedTrajectory)
         assert trajectory.end_s >= (scenario.n_frames - 1) / scenario.fps
         assert trajectory.in_view_fraction > 0.85
+
+
+def test_load_scenario_resolves_the_hand_motion(tmp_path: Path) -> None:
+    text = preset_scenario_paths("fast-ycb")[0].read_text()
+    assert text.count('source = "auto"\n') == 1
+    path = tmp_path / "scenario.toml"
+    for replacement, expected in (
+        ('source = "auto"\ntrajectories_dir = "absent"\n', ContinuousMotionConfig),
+        ('source = "bursty"\n', SyntheticMotionConfig),
+    ):
+        path.write_text(text.replace('source = "auto"\n', replacement))
+        assert isinstance(load_scenario(path).trajectory, expected)
 
 
 def test_cli_hand_motion_stats_side_by_side(
