@@ -202,6 +202,28 @@ def _video_scale(width: int, options: ReportOptions) -> float:
     return 1.0 if width <= 960 else 0.5
 
 
+def _frame_errors(folder: Path, n_frames: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per frame (n_frames,) position [cm] and rotation [deg] error of a run folder; NaN where
+    there is none (no ground truth, or a frame not scored)."""
+    err_t = np.full(n_frames, np.nan)
+    err_a = np.full(n_frames, np.nan)
+    if (folder / FRAME_ERRORS_FILE).is_file():
+        errors = load_frame_errors(folder / FRAME_ERRORS_FILE)
+        err_t[errors.frame_index] = errors.t_err_norm_cm
+        err_a[errors.frame_index] = errors.a_err_deg
+    return err_t, err_a
+
+
+def _scaled(image: np.ndarray, scale: float) -> np.ndarray:
+    """``image`` (H, W, 3) resized by ``scale`` (area interpolation); itself at scale 1."""
+    if scale == 1.0:
+        return image
+    import cv2
+
+    size = (int(round(image.shape[1] * scale)), int(round(image.shape[0] * scale)))
+    return cv2.resize(image, size, interpolation=cv2.INTER_AREA)
+
+
 def _write_video(
     seq_record: dict[str, Any],
     run_record: dict[str, Any],
@@ -226,16 +248,7 @@ def _write_video(
         with_flow=False,
     )
     estimates = load_estimates(folder / ESTIMATES_FILE)
-    errors = (
-        load_frame_errors(folder / FRAME_ERRORS_FILE)
-        if (folder / FRAME_ERRORS_FILE).is_file()
-        else None
-    )
-    err_t = np.full(len(sequence), np.nan)
-    err_a = np.full(len(sequence), np.nan)
-    if errors is not None:
-        err_t[errors.frame_index] = errors.t_err_norm_cm
-        err_a[errors.frame_index] = errors.a_err_deg
+    err_t, err_a = _frame_errors(folder, len(sequence))
     intr = sequence.intrinsics
     scale = _video_scale(intr.width_px, options)
     n = (
@@ -275,15 +288,7 @@ def _write_video(
                     mask_text,
                 ),
             )
-            image = draw_overlay(frame)
-            if scale != 1.0:
-                import cv2
-
-                image = cv2.resize(
-                    image,
-                    (int(round(image.shape[1] * scale)), int(round(image.shape[0] * scale))),
-                    interpolation=cv2.INTER_AREA,
-                )
+            image = _scaled(draw_overlay(frame), scale)
             video.write(image)
             if k in wanted:
                 still = out_dir / "stills" / f"{name}_k{k:04d}.png"
