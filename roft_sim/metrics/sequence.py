@@ -169,6 +169,42 @@ def _as_rows(name: str, a: ArrayLike | None, n: int, width: int) -> F64 | None:
     return arr
 
 
+def _velocity_errors(
+    index: NDArray[np.intp],
+    Tg: F64,
+    scored: NDArray[np.bool_],
+    v_obj_gt: F64 | None,
+    w_gt: F64 | None,
+    v_obj_est: F64 | None,
+    w_est: F64 | None,
+    twist: F64 | None,
+) -> tuple[F64, F64]:
+    """Per scored frame (F = index.size) the linear (F, 3) [cm/s] and angular (F, 3) [deg/s]
+    velocity errors, estimate minus ground truth, camera frame; NaN rows where a frame is not
+    scored or either side is missing. A spatial twist is scored at the ground-truth origin
+    ``t_gt`` (rows of ``Tg``, the ground truth of the kept frames)."""
+    f = index.size
+    v_err = np.full((f, 3), np.nan)
+    w_err = np.full((f, 3), np.nan)
+    if v_obj_gt is None or w_gt is None:
+        if any(x is not None for x in (v_obj_est, w_est, twist)):
+            raise ValueError("velocity estimates were given without v_obj_gt and w_gt")
+        return v_err, w_err
+    if twist is not None:
+        w_hat = twist[index, 3:]
+        v_hat = v_obj_from_v_o(twist[index, :3], w_hat, Tg[:, :3, 3])
+    elif v_obj_est is not None and w_est is not None:
+        v_hat, w_hat = v_obj_est[index], w_est[index]
+    else:
+        return v_err, w_err
+    v_err = (v_hat - v_obj_gt[index]) * _CM
+    w_err = (w_hat - w_gt[index]) * _DEG
+    rows = np.isfinite(v_err).all(1) & np.isfinite(w_err).all(1) & scored
+    v_err[~rows] = np.nan
+    w_err[~rows] = np.nan
+    return v_err, w_err
+
+
 def evaluate_sequence(
     T_est: ArrayLike,
     T_gt: ArrayLike,
@@ -243,24 +279,7 @@ def evaluate_sequence(
     t_err[~scored] = np.nan
     a_err[~scored] = np.nan
 
-    v_err = np.full((f, 3), np.nan)
-    w_err = np.full((f, 3), np.nan)
-    if v_obj_gt is not None and w_gt is not None:
-        if twist is not None:
-            w_hat = twist[index, 3:]
-            v_hat = v_obj_from_v_o(twist[index, :3], w_hat, Tg[:, :3, 3])
-        elif v_obj_est is not None and w_est is not None:
-            v_hat, w_hat = v_obj_est[index], w_est[index]
-        else:
-            v_hat = w_hat = None
-        if v_hat is not None and w_hat is not None:
-            v_err = (v_hat - v_obj_gt[index]) * _CM
-            w_err = (w_hat - w_gt[index]) * _DEG
-            rows = np.isfinite(v_err).all(1) & np.isfinite(w_err).all(1) & scored
-            v_err[~rows] = np.nan
-            w_err[~rows] = np.nan
-    elif any(x is not None for x in (v_obj_est, w_est, twist)):
-        raise ValueError("velocity estimates were given without v_obj_gt and w_gt")
+    v_err, w_err = _velocity_errors(index, Tg, scored, v_obj_gt, w_gt, v_obj_est, w_est, twist)
 
     times = None if step_times_s is None else np.asarray(step_times_s, dtype=np.float64)
     return _metrics_from_frames(
