@@ -135,6 +135,40 @@ def tracker_description(spec: TrackerSpec) -> dict[str, Any]:
     }
 
 
+def _sequence_record(source: SequenceSource, run: SequenceRun) -> dict[str, Any]:
+    """The ``run.json`` entry of one sequence: where it came from, its size, inputs and seeds."""
+    seq = source.sequence
+    return {
+        "name": seq.name,
+        "path": None if source.path is None else str(source.path),
+        "format": None if source.path is None else detect_format(source.path),
+        "object": seq.object_name,
+        "frames": len(seq),
+        "fps": int(seq.fps),
+        "resolution": [seq.intrinsics.width_px, seq.intrinsics.height_px],
+        "inputs": run.inputs,
+        "seeds": run.seeds.describe(),
+        "depth_renderer_built": run.depth_renderer_built,
+        "wall_s": round(run.wall_s, 3),
+    }
+
+
+def _pooled_metrics(
+    evaluations: dict[str, SequenceEvaluation],
+) -> tuple[dict[str, SequenceMetrics], dict[str, dict[str, Any]]]:
+    """ALL and MEAN over the scored sequences, and the ``metrics.json`` entries: ALL, MEAN, then
+    one per sequence."""
+    scored = {n: e.metrics for n, e in evaluations.items() if e.metrics is not None}
+    pooled: dict[str, SequenceMetrics] = pool_metrics(scored) if scored else {}
+    metrics: dict[str, dict[str, Any]] = {}
+    for name in (POOLED_ALL, POOLED_MEAN):
+        if name in pooled:
+            metrics[name] = pooled[name].summary()
+    for name, evaluation in evaluations.items():
+        metrics[name] = evaluation.entry()
+    return pooled, metrics
+
+
 def run_sequences(
     sources: Sequence[SequenceSource],
     options: RunOptions,
@@ -196,32 +230,11 @@ def run_sequences(
             write_sequence_outputs(out / seq.name, run, evaluation)
             runs.append(run)
             evaluations[seq.name] = evaluation
-            described.append(
-                {
-                    "name": seq.name,
-                    "path": None if source.path is None else str(source.path),
-                    "format": None if source.path is None else detect_format(source.path),
-                    "object": seq.object_name,
-                    "frames": len(seq),
-                    "fps": int(seq.fps),
-                    "resolution": [seq.intrinsics.width_px, seq.intrinsics.height_px],
-                    "inputs": run.inputs,
-                    "seeds": run.seeds.describe(),
-                    "depth_renderer_built": run.depth_renderer_built,
-                    "wall_s": round(run.wall_s, 3),
-                }
-            )
+            described.append(_sequence_record(source, run))
             if on_sequence_done is not None:
                 on_sequence_done(run, evaluation)
 
-    scored = {n: e.metrics for n, e in evaluations.items() if e.metrics is not None}
-    pooled: dict[str, SequenceMetrics] = pool_metrics(scored) if scored else {}
-    metrics: dict[str, dict[str, Any]] = {}
-    for name in (POOLED_ALL, POOLED_MEAN):
-        if name in pooled:
-            metrics[name] = pooled[name].summary()
-    for name, evaluation in evaluations.items():
-        metrics[name] = evaluation.entry()
+    pooled, metrics = _pooled_metrics(evaluations)
     write_json(out / METRICS_FILE, metrics)
     wall_s = time.perf_counter() - t0
     write_json(
