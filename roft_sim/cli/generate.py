@@ -21,11 +21,15 @@ import logging
 import os
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from roft_sim.cli.assets import assets_dir_from_args
 from roft_sim.cli.output_dirs import prepare_output_dir
 from roft_sim.errors import ConfigError
+
+if TYPE_CHECKING:  # the generation and executor modules load only when a verb runs
+    from roft_sim.executors import Shard
+    from roft_sim.generation.runner import GenerationSummary
 
 __all__ = ["register", "add_executor_arguments", "executor_from_args", "shard_from_args"]
 
@@ -208,6 +212,33 @@ def _scenario_paths(args: argparse.Namespace) -> tuple[list[Path], str | None]:
     return list(args.scenarios), None
 
 
+def _print_summary(
+    args: argparse.Namespace, summary: GenerationSummary, shard: Shard | None
+) -> None:
+    """What ``generate`` prints: the JSON summary, a shard's progress, or one line per sequence
+    (stdout) and the throughput (stderr)."""
+    if args.json:
+        print(json.dumps(summary.report(), indent=2))
+    elif shard is not None:
+        for s in summary.sequences:
+            print(f"{args.out / s.name}: {s.frames_generated} frames generated now")
+        print(
+            f"shard {shard}: {summary.frames_generated} frames in {summary.wall_s:.1f} s; once "
+            "every shard has finished, run the same command without --shard and with --resume "
+            "to finalize the sequences",
+            file=sys.stderr,
+        )
+    else:
+        for s in summary.sequences:
+            print(f"{s.path} ({s.n_frames} frames, {s.frames_generated} generated now)")
+        print(
+            f"{summary.frames_generated} frames in {summary.wall_s:.1f} s "
+            f"({summary.frames_per_s:.2f} frames/s, {summary.workers} worker"
+            f"{'s' if summary.workers > 1 else ''})",
+            file=sys.stderr,
+        )
+
+
 def _run(args: argparse.Namespace) -> int:
     from roft_sim.assets import default_cache_dir
     from roft_sim.render.gl_backend import require_gl_backend
@@ -275,24 +306,5 @@ def _run(args: argparse.Namespace) -> int:
         # local: let generate_dataset choose (in this process when there is one unit)
         executor=None if args.executor == "local" else executor,
     )
-    if args.json:
-        print(json.dumps(summary.report(), indent=2))
-    elif shard is not None:
-        for s in summary.sequences:
-            print(f"{args.out / s.name}: {s.frames_generated} frames generated now")
-        print(
-            f"shard {shard}: {summary.frames_generated} frames in {summary.wall_s:.1f} s; once "
-            "every shard has finished, run the same command without --shard and with --resume "
-            "to finalize the sequences",
-            file=sys.stderr,
-        )
-    else:
-        for s in summary.sequences:
-            print(f"{s.path} ({s.n_frames} frames, {s.frames_generated} generated now)")
-        print(
-            f"{summary.frames_generated} frames in {summary.wall_s:.1f} s "
-            f"({summary.frames_per_s:.2f} frames/s, {summary.workers} worker"
-            f"{'s' if summary.workers > 1 else ''})",
-            file=sys.stderr,
-        )
+    _print_summary(args, summary, shard)
     return 0
