@@ -169,6 +169,49 @@ def _pooled_metrics(
     return pooled, metrics
 
 
+def _run_each(
+    sources: Sequence[SequenceSource],
+    options: RunOptions,
+    spec: TrackerSpec,
+    out: Path,
+    depth_renderer_factory: DepthRendererFactory | None,
+    progress: bool,
+    on_sequence_done: Callable[[SequenceRun, SequenceEvaluation], None] | None,
+) -> tuple[list[SequenceRun], dict[str, SequenceEvaluation], list[dict[str, Any]]]:
+    """Runs, scores and writes every sequence in turn (one progress bar over all frames);
+    returns the runs, their evaluations by name and their ``run.json`` records."""
+    from tqdm import tqdm
+
+    total = sum(len(s.sequence) for s in sources)
+    runs: list[SequenceRun] = []
+    evaluations: dict[str, SequenceEvaluation] = {}
+    described = []
+    with tqdm(
+        total=total, unit="frame", desc=f"run {spec.name}", disable=not progress, leave=False
+    ) as bar:
+        for source in sources:
+            seq = source.sequence
+            bar.set_postfix_str(seq.name)
+            model = resolve_object_model(seq)
+            run = run_sequence(
+                seq,
+                options,
+                spec=spec,
+                object_model=model,
+                depth_renderer_factory=depth_renderer_factory,
+                progress=bar.update,
+            )
+            evaluation = evaluate_run(run, invalid=options.invalid)
+            write_sequence_outputs(out / seq.name, run, evaluation)
+            runs.append(run)
+            evaluations[seq.name] = evaluation
+            described.append(_sequence_record(source, run))
+            if on_sequence_done is not None:
+                on_sequence_done(run, evaluation)
+
+    return runs, evaluations, described
+
+
 def run_sequences(
     sources: Sequence[SequenceSource],
     options: RunOptions,
@@ -205,35 +248,9 @@ def run_sequences(
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
 
-    from tqdm import tqdm
-
-    total = sum(len(s.sequence) for s in sources)
-    runs: list[SequenceRun] = []
-    evaluations: dict[str, SequenceEvaluation] = {}
-    described = []
-    with tqdm(
-        total=total, unit="frame", desc=f"run {spec.name}", disable=not progress, leave=False
-    ) as bar:
-        for source in sources:
-            seq = source.sequence
-            bar.set_postfix_str(seq.name)
-            model = resolve_object_model(seq)
-            run = run_sequence(
-                seq,
-                options,
-                spec=spec,
-                object_model=model,
-                depth_renderer_factory=depth_renderer_factory,
-                progress=bar.update,
-            )
-            evaluation = evaluate_run(run, invalid=options.invalid)
-            write_sequence_outputs(out / seq.name, run, evaluation)
-            runs.append(run)
-            evaluations[seq.name] = evaluation
-            described.append(_sequence_record(source, run))
-            if on_sequence_done is not None:
-                on_sequence_done(run, evaluation)
-
+    runs, evaluations, described = _run_each(
+        sources, options, spec, out, depth_renderer_factory, progress, on_sequence_done
+    )
     pooled, metrics = _pooled_metrics(evaluations)
     write_json(out / METRICS_FILE, metrics)
     wall_s = time.perf_counter() - t0

@@ -169,6 +169,26 @@ def _as_rows(name: str, a: ArrayLike | None, n: int, width: int) -> F64 | None:
     return arr
 
 
+def _checked_poses(
+    T_est: ArrayLike, T_gt: ArrayLike, valid: ArrayLike | None, invalid: str
+) -> tuple[F64, F64, NDArray[np.bool_]]:
+    """``T_est``, ``T_gt`` as (N, 4, 4) float64 and ``valid`` as (N,) bool (None = all), checked
+    with ``invalid`` (see :func:`evaluate_sequence`)."""
+    T_est = np.asarray(T_est, dtype=np.float64)
+    T_gt = np.asarray(T_gt, dtype=np.float64)
+    n = T_gt.shape[0] if T_gt.ndim == 3 else -1
+    if T_est.shape != (n, 4, 4) or T_gt.shape != (n, 4, 4):
+        raise ValueError(
+            f"T_est and T_gt must both have shape (N, 4, 4), got {T_est.shape} and {T_gt.shape}"
+        )
+    if invalid not in ("failure", "exclude", "as_given"):
+        raise ValueError(f"invalid must be 'failure', 'exclude' or 'as_given', got {invalid!r}")
+    ok = np.ones(n, bool) if valid is None else np.asarray(valid, dtype=bool)
+    if ok.shape != (n,):
+        raise ValueError(f"valid must have shape ({n},), got {ok.shape}")
+    return T_est, T_gt, ok
+
+
 def _velocity_errors(
     index: NDArray[np.intp],
     Tg: F64,
@@ -243,18 +263,8 @@ def evaluate_sequence(
     Returns:
         The :class:`SequenceMetrics`.
     """
-    T_est = np.asarray(T_est, dtype=np.float64)
-    T_gt = np.asarray(T_gt, dtype=np.float64)
-    n = T_gt.shape[0] if T_gt.ndim == 3 else -1
-    if T_est.shape != (n, 4, 4) or T_gt.shape != (n, 4, 4):
-        raise ValueError(
-            f"T_est and T_gt must both have shape (N, 4, 4), got {T_est.shape} and {T_gt.shape}"
-        )
-    if invalid not in ("failure", "exclude", "as_given"):
-        raise ValueError(f"invalid must be 'failure', 'exclude' or 'as_given', got {invalid!r}")
-    ok = np.ones(n, bool) if valid is None else np.asarray(valid, dtype=bool)
-    if ok.shape != (n,):
-        raise ValueError(f"valid must have shape ({n},), got {ok.shape}")
+    T_est, T_gt, ok = _checked_poses(T_est, T_gt, valid, invalid)
+    n = T_gt.shape[0]
     v_obj_gt = _as_rows("v_obj_gt", v_obj_gt, n, 3)
     w_gt = _as_rows("w_gt", w_gt, n, 3)
     v_obj_est = _as_rows("v_obj_est", v_obj_est, n, 3)
