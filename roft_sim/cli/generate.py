@@ -45,6 +45,40 @@ def _preset_help() -> str:
     return "; ".join(f"{p.name}: {p.description}" for p in PRESETS.values())
 
 
+def _add_run_arguments(parser: argparse.ArgumentParser) -> None:
+    """How ``generate`` runs: workers and executor, chunks, overwrite/resume, assets, output."""
+    add_executor_arguments(
+        parser,
+        workers_help="workers, each rendering with its own OpenGL context: local processes "
+        "(default 1 = in this process) or, with --executor ray, Ray actors (default: one per "
+        "CPU of the cluster)",
+        shard_help="generate only shard i of N (1-based, e.g. 2/4) of the frame chunks, for "
+        "array jobs sharing --out; the same command with --resume and no --shard finalizes "
+        "the sequences once every shard has finished (docs/scaleout.md)",
+    )
+    parser.add_argument(
+        "--chunk-frames",
+        type=int,
+        default=32,
+        help="most frames per work unit handed to a worker (default 32)",
+    )
+    parser.add_argument("--overwrite", action="store_true", help="empty a non-empty --out first")
+    parser.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue an interrupted run in --out: keep finished sequences and complete "
+        "frames, generate only the missing frames (same scenarios and options required)",
+    )
+    parser.add_argument(
+        "--assets",
+        type=Path,
+        help="folder of real YCB meshes searched first (default $ROFT_SIM_ASSETS; then the "
+        "cache, $ROFT_SIM_CACHE or ~/.cache/roft_sim; else procedural stand-ins)",
+    )
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar (also with -q)")
+    parser.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
+
+
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Adds the ``generate`` verb."""
     parser = subparsers.add_parser(
@@ -106,36 +140,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="scenario seed (textures, depth noise, simulated networks; the trajectory keeps its "
         "own seed); default: each scenario's seed",
     )
-    add_executor_arguments(
-        parser,
-        workers_help="workers, each rendering with its own OpenGL context: local processes "
-        "(default 1 = in this process) or, with --executor ray, Ray actors (default: one per "
-        "CPU of the cluster)",
-        shard_help="generate only shard i of N (1-based, e.g. 2/4) of the frame chunks, for "
-        "array jobs sharing --out; the same command with --resume and no --shard finalizes "
-        "the sequences once every shard has finished (docs/scaleout.md)",
-    )
-    parser.add_argument(
-        "--chunk-frames",
-        type=int,
-        default=32,
-        help="most frames per work unit handed to a worker (default 32)",
-    )
-    parser.add_argument("--overwrite", action="store_true", help="empty a non-empty --out first")
-    parser.add_argument(
-        "--resume",
-        action="store_true",
-        help="continue an interrupted run in --out: keep finished sequences and complete "
-        "frames, generate only the missing frames (same scenarios and options required)",
-    )
-    parser.add_argument(
-        "--assets",
-        type=Path,
-        help="folder of real YCB meshes searched first (default $ROFT_SIM_ASSETS; then the "
-        "cache, $ROFT_SIM_CACHE or ~/.cache/roft_sim; else procedural stand-ins)",
-    )
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar (also with -q)")
-    parser.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
+    _add_run_arguments(parser)
     parser.set_defaults(func=_run)
 
 
