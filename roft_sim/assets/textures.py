@@ -19,6 +19,7 @@ Bump :data:`TEXTURE_GENERATOR_VERSION` whenever the output changes, so caches ar
 from __future__ import annotations
 
 import string
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
@@ -122,16 +123,29 @@ def _draw_text_line(
 Color = tuple[float, ...]
 
 
+@dataclass(frozen=True, slots=True, kw_only=True)
+class _Inks:
+    """The colours and scale every drawing step of :func:`procedural_texture` shares."""
+
+    palette: NDArray[np.float32]
+    """(C, 3) colours in [0, 1]."""
+    weights: NDArray[np.float64]
+    """(C,) colour fractions, summing to 1."""
+    px_per_mm: float
+    """Texels per millimetre of surface."""
+    dark: Color
+    """The darkest palette colour (0-1 for the stripes, 0-255 once drawing on the canvas)."""
+    light: Color
+    """The lightest palette colour (same scale as ``dark``)."""
+
+
 def _stripe_bands(
     image: NDArray[np.float32],
     rng: np.random.Generator,
-    palette: NDArray[np.float32],
-    weights: NDArray[np.float64],
-    k: float,
-    dark: Color,
-    light: Color,
+    ink: _Inks,
 ) -> None:
     """Step 3: 4-7 bands of fine stripes over ``image`` (H, W, 3) [0-1], in place."""
+    palette, weights, k, dark, light = ink.palette, ink.weights, ink.px_per_mm, ink.dark, ink.light
     h, w = image.shape[:2]
     rows, cols = np.mgrid[0:h, 0:w].astype(np.float32)
     for _ in range(int(rng.integers(4, 8))):
@@ -154,13 +168,10 @@ def _stripe_bands(
 def _label_blocks(
     canvas: U8,
     rng: np.random.Generator,
-    palette: NDArray[np.float32],
-    weights: NDArray[np.float64],
-    k: float,
-    dark: Color,
-    light: Color,
+    ink: _Inks,
 ) -> None:
     """Step 4: label blocks with a border and text lines, drawn into ``canvas`` (0-255)."""
+    palette, weights, k, dark, light = ink.palette, ink.weights, ink.px_per_mm, ink.dark, ink.light
     h, w = canvas.shape[:2]
     area_mm2 = (h / k) * (w / k)
     for _ in range(max(2, int(area_mm2 / 2500.0))):
@@ -183,13 +194,10 @@ def _label_blocks(
 def _marks_and_dots(
     canvas: U8,
     rng: np.random.Generator,
-    palette: NDArray[np.float32],
-    weights: NDArray[np.float64],
-    k: float,
-    dark: Color,
-    light: Color,
+    ink: _Inks,
 ) -> None:
     """Steps 5 and 6a: text-like marks everywhere, then dots, drawn into ``canvas``."""
+    palette, weights, k, dark, light = ink.palette, ink.weights, ink.px_per_mm, ink.dark, ink.light
     h, w = canvas.shape[:2]
     area_mm2 = (h / k) * (w / k)
     for _ in range(int(area_mm2 / 350.0)):
@@ -253,11 +261,14 @@ def procedural_texture(
     cuts = np.quantile(field[:: max(1, h // 256), :: max(1, w // 256)], np.cumsum(weights)[:-1])
     region = np.searchsorted(cuts, field).astype(np.intp)
     image = palette[region]
-    _stripe_bands(image, rng, palette, weights, k, dark, light)  # 3.
+    _stripe_bands(
+        image, rng, _Inks(palette=palette, weights=weights, px_per_mm=k, dark=dark, light=light)
+    )  # 3.
     # drawing (OpenCV's text needs 8-bit images): colours as 0-255 tuples from here on
     canvas = np.clip(np.rint(image * 255.0), 0, 255).astype(np.uint8)
     dark = tuple(255.0 * c for c in dark)
     light = tuple(255.0 * c for c in light)
-    _label_blocks(canvas, rng, palette, weights, k, dark, light)  # 4.
-    _marks_and_dots(canvas, rng, palette, weights, k, dark, light)  # 5., 6a.
+    inks = _Inks(palette=palette, weights=weights, px_per_mm=k, dark=dark, light=light)
+    _label_blocks(canvas, rng, inks)  # 4.
+    _marks_and_dots(canvas, rng, inks)  # 5., 6a.
     return _shaded(canvas, rng, k)  # 2., 6b.
