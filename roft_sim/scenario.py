@@ -208,9 +208,9 @@ class Scenario:
 def load_scenario(path: str | Path) -> Scenario:
     """Reads a scenario TOML file strictly.
 
-    Relative paths in it (``[object] mesh``, ``[trajectory] path``) are resolved here, against
-    the file's folder, and stored absolute (``[camera.motion] path`` too). A ``kind = "hand-motion"`` trajectory is resolved
-    here too, into the motion it stands for (the captured file when present, else the fitted
+    Relative paths in it (``[object] mesh``, ``[trajectory] path``, ``[camera.motion] path``) are
+    resolved here, against the file's folder, and stored absolute. A ``kind = "hand-motion"``
+    trajectory is resolved here too, into the motion it stands for (the captured file when present, else the fitted
     continuous profile; logged), so that the scenario, and the metadata of what it generates,
     say which motion was used.
 

@@ -1,13 +1,15 @@
 """Where the files shipped with roft_sim live: the one place that knows.
 
 Scenario files (``ci/``, ``fast_ycb/``), fault presets (``faults/``) and the stress benchmark's
-sweep file (``sweeps/stress.toml``) are package data in
-``roft_sim/scenarios/``; the repository also shows them at ``scenarios/`` (a symbolic link), so
-paths like ``scenarios/ci/cracker_box.toml`` work from a checkout.
+sweep file (``sweeps/stress.toml``) live in ``scenarios/`` at
+the repository's top level, so paths like ``scenarios/ci/cracker_box.toml`` work from a checkout;
+they are installed as the data package ``roft_sim.scenarios`` (``package-dir`` in
+pyproject.toml), which is how the installed package finds them.
 """
 
 from __future__ import annotations
 
+import importlib.resources
 from pathlib import Path
 
 from roft_sim.errors import ConfigError
@@ -21,7 +23,10 @@ def scenarios_dir() -> Path:
     Raises:
         ConfigError: the folder is missing (a broken installation).
     """
-    path = Path(__file__).resolve().parent / "scenarios"
+    try:
+        path = Path(str(importlib.resources.files("roft_sim.scenarios")))
+    except ModuleNotFoundError:
+        path = Path(__file__).resolve().parent / "scenarios"  # named in the error below
     if not path.is_dir():
         raise ConfigError(
             f"the shipped scenario folder {str(path)!r} is missing; reinstall roft-sim "

@@ -409,6 +409,85 @@ def _install_archive(
         )
 
 
+def _install_from_local(
+    source: str, cache_dir: Path, objects: list[str] | None, sha256: str | None
+) -> list[Path]:
+    """:func:`install_assets` from a local folder or archive file."""
+    path = Path(source).expanduser()
+    if re.match(r"^[a-z][a-z0-9+.-]*://", source, flags=re.IGNORECASE):
+        raise ConfigError(
+            f"unsupported URL scheme in {source!r}; use http(s)://, a local folder or a "
+            "local archive file"
+        )
+    if path.is_dir():
+        if sha256 is not None:
+            raise ConfigError("--sha256 checks an archive; it cannot be used with a folder")
+        return _install_from_tree(
+            path,
+            cache_dir,
+            objects,
+            where=f"folder {located(path)}",
+            record={"source": str(path.resolve())},
+            required=objects is not None,
+        )
+    if path.is_file():
+        return _install_archive(
+            path,
+            cache_dir,
+            objects,
+            sha256=sha256,
+            actual_sha256=None,
+            record={"source": str(path.resolve())},
+        )
+    raise AssetNotFoundError(
+        f"{located(path)} does not exist; give a folder of YCB objects, an archive file, an "
+        f"http(s) URL, or 'ycb' for the official download. {install_hint(['<name>'])}"
+    )
+
+
+def _install_from_urls(
+    source: str,
+    cache_dir: Path,
+    objects: list[str] | None,
+    sha256: str | None,
+    progress: bool,
+) -> list[Path]:
+    """:func:`install_assets` from an archive URL, a base URL or a ``{name}`` URL template:
+    every archive downloaded into ``<cache_dir>/downloads``, checked, installed, deleted."""
+    downloads = cache_dir / "downloads"
+    downloads.mkdir(parents=True, exist_ok=True)
+    names = objects if objects is not None else list(object_registry())
+    jobs: list[tuple[str, list[str] | None]]
+    if "{name}" in source:
+        jobs = [(source.replace("{name}", n), [n]) for n in names]
+    elif _is_archive_name(source.split("?", 1)[0]):
+        jobs = [(source, objects)]
+    else:
+        jobs = [(official_archive_url(n, source), [n]) for n in names]
+    if sha256 is not None and len(jobs) != 1:
+        raise ConfigError(
+            f"--sha256 checks one archive, but this source needs {len(jobs)} downloads; "
+            "install one object at a time (--objects NAME) to check each"
+        )
+    installed: list[Path] = []
+    for url, names_in in jobs:
+        fd, tmp = tempfile.mkstemp(prefix=".download-", suffix=".archive", dir=downloads)
+        os.close(fd)
+        try:
+            actual = _download(url, Path(tmp), progress=progress)
+            installed += _install_archive(
+                Path(tmp),
+                cache_dir,
+                names_in,
+                sha256=sha256,
+                actual_sha256=actual,
+                record={"source": url},
+            )
+        finally:
+            Path(tmp).unlink(missing_ok=True)
+    return installed
+
+
 def install_assets(
     source: str,
     cache_dir: Path,
@@ -460,66 +539,5 @@ def install_assets(
         source_str, is_url = OFFICIAL_YCB_BASE_URL, True
 
     if not is_url:
-        path = Path(source_str).expanduser()
-        if re.match(r"^[a-z][a-z0-9+.-]*://", source_str, flags=re.IGNORECASE):
-            raise ConfigError(
-                f"unsupported URL scheme in {source_str!r}; use http(s)://, a local folder or a "
-                "local archive file"
-            )
-        if path.is_dir():
-            if sha256 is not None:
-                raise ConfigError("--sha256 checks an archive; it cannot be used with a folder")
-            return _install_from_tree(
-                path,
-                cache_dir,
-                objects,
-                where=f"folder {located(path)}",
-                record={"source": str(path.resolve())},
-                required=objects is not None,
-            )
-        if path.is_file():
-            return _install_archive(
-                path,
-                cache_dir,
-                objects,
-                sha256=sha256,
-                actual_sha256=None,
-                record={"source": str(path.resolve())},
-            )
-        raise AssetNotFoundError(
-            f"{located(path)} does not exist; give a folder of YCB objects, an archive file, an "
-            f"http(s) URL, or 'ycb' for the official download. {install_hint(['<name>'])}"
-        )
-
-    downloads = cache_dir / "downloads"
-    downloads.mkdir(parents=True, exist_ok=True)
-    names = objects if objects is not None else list(object_registry())
-    jobs: list[tuple[str, list[str] | None]]
-    if "{name}" in source_str:
-        jobs = [(source_str.replace("{name}", n), [n]) for n in names]
-    elif _is_archive_name(source_str.split("?", 1)[0]):
-        jobs = [(source_str, objects)]
-    else:
-        jobs = [(official_archive_url(n, source_str), [n]) for n in names]
-    if sha256 is not None and len(jobs) != 1:
-        raise ConfigError(
-            f"--sha256 checks one archive, but this source needs {len(jobs)} downloads; "
-            "install one object at a time (--objects NAME) to check each"
-        )
-    installed: list[Path] = []
-    for url, names_in in jobs:
-        fd, tmp = tempfile.mkstemp(prefix=".download-", suffix=".archive", dir=downloads)
-        os.close(fd)
-        try:
-            actual = _download(url, Path(tmp), progress=progress)
-            installed += _install_archive(
-                Path(tmp),
-                cache_dir,
-                names_in,
-                sha256=sha256,
-                actual_sha256=actual,
-                record={"source": url},
-            )
-        finally:
-            Path(tmp).unlink(missing_ok=True)
-    return installed
+        return _install_from_local(source_str, cache_dir, objects, sha256)
+    return _install_from_urls(source_str, cache_dir, objects, sha256, progress)

@@ -124,6 +124,21 @@ def find_ycb_mesh(
     return None
 
 
+def _check_load_options(prefer: str, max_texture_px: int, assets_dir: Path | None) -> None:
+    """The checks of :func:`load_object`'s options (see its Raises)."""
+    if prefer not in ("auto", "ycb", "procedural"):
+        raise ConfigError(f"prefer must be 'auto', 'ycb' or 'procedural', got {prefer!r}")
+    if not isinstance(max_texture_px, int) or not 8 <= max_texture_px <= _MAX_TEXTURE_PX:
+        raise ConfigError(
+            f"max_texture_px must be an integer in 8..{_MAX_TEXTURE_PX}, got {max_texture_px!r}"
+        )
+    if assets_dir is not None and not Path(assets_dir).is_dir():
+        raise AssetNotFoundError(
+            f"assets directory {located(assets_dir)} does not exist; give a folder of YCB objects "
+            "(<name>/google_16k/textured.obj) or leave it out"
+        )
+
+
 def load_object(
     name_or_path: str | os.PathLike[str],
     *,
@@ -161,17 +176,7 @@ def load_object(
             the registry's alignment.
         ConfigError: bad ``prefer`` or ``max_texture_px``.
     """
-    if prefer not in ("auto", "ycb", "procedural"):
-        raise ConfigError(f"prefer must be 'auto', 'ycb' or 'procedural', got {prefer!r}")
-    if not isinstance(max_texture_px, int) or not 8 <= max_texture_px <= _MAX_TEXTURE_PX:
-        raise ConfigError(
-            f"max_texture_px must be an integer in 8..{_MAX_TEXTURE_PX}, got {max_texture_px!r}"
-        )
-    if assets_dir is not None and not Path(assets_dir).is_dir():
-        raise AssetNotFoundError(
-            f"assets directory {located(assets_dir)} does not exist; give a folder of YCB objects "
-            "(<name>/google_16k/textured.obj) or leave it out"
-        )
+    _check_load_options(prefer, max_texture_px, assets_dir)
     assets_dir = Path(assets_dir) if assets_dir is not None else None
     cache_dir = Path(cache_dir) if cache_dir is not None else None
     key = os.fspath(name_or_path)

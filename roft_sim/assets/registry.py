@@ -1,9 +1,10 @@
 """The object registry: names, sizes, shapes, colours and frame alignment of the known objects.
 
-The registry is read from ``roft_sim/assets/ycb/manifest.toml`` (strictly: unknown keys and bad
-values are errors naming the key). Every geometric number is in the object frame of the poses,
-which for YCB objects is the NVDU/DOPE-aligned frame of Fast-YCB (bounding-box centre at the
-origin); :attr:`ObjectInfo.T_nvdu_orig` maps the original YCB mesh frame into it.
+The registry is read from ``assets/ycb/manifest.toml``, installed as ``roft_sim/assets/ycb/``
+(strictly: unknown keys and bad values are errors naming the key). Every geometric number is in
+the object frame of the poses, which for YCB objects is the NVDU/DOPE-aligned frame of Fast-YCB
+(bounding-box centre at the origin); :attr:`ObjectInfo.T_nvdu_orig` maps the original YCB mesh
+frame into it.
 """
 
 from __future__ import annotations
@@ -201,7 +202,7 @@ def load_manifest(path: str | Path | None = None) -> tuple[ObjectInfo, ...]:
     """
     if path is None:
         resource = importlib.resources.files("roft_sim.assets.ycb") / "manifest.toml"
-        text, where = resource.read_text(encoding="utf-8"), "roft_sim/assets/ycb/manifest.toml"
+        text, where = resource.read_text(encoding="utf-8"), "assets/ycb/manifest.toml"
     else:
         path = Path(path)
         try:

@@ -19,6 +19,7 @@ Bump :data:`TEXTURE_GENERATOR_VERSION` whenever the output changes, so caches ar
 from __future__ import annotations
 
 import string
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
@@ -120,6 +121,113 @@ def _draw_text_line(
         x += tw + cap_height_px * float(rng.uniform(0.6, 1.2))
 
 
+Color = tuple[float, ...]
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class _Inks:
+    """The colours and scale every drawing step of :func:`procedural_texture` shares."""
+
+    palette: NDArray[np.float32]
+    """(C, 3) colours in [0, 1]."""
+    weights: NDArray[np.float64]
+    """(C,) colour fractions, summing to 1."""
+    px_per_mm: float
+    """Texels per millimetre of surface."""
+    dark: Color
+    """The darkest palette colour (0-1 for the stripes, 0-255 once drawing on the canvas)."""
+    light: Color
+    """The lightest palette colour (same scale as ``dark``)."""
+
+
+def _stripe_bands(
+    image: NDArray[np.float32],
+    rng: np.random.Generator,
+    ink: _Inks,
+) -> None:
+    """Step 3: 4-7 bands of fine stripes over ``image`` (H, W, 3) [0-1], in place."""
+    palette, weights, k, dark, light = ink.palette, ink.weights, ink.px_per_mm, ink.dark, ink.light
+    h, w = image.shape[:2]
+    rows, cols = np.mgrid[0:h, 0:w].astype(np.float32)
+    for _ in range(int(rng.integers(4, 8))):
+        angle = float(rng.choice([0.0, 0.0, np.pi / 2, rng.uniform(0, np.pi)]))
+        nx, ny = np.cos(angle), np.sin(angle)
+        along = (cols * nx + rows * ny) / k  # mm across the band
+        centre = float(rng.uniform(along.min(), along.max()))
+        half_width = float(rng.uniform(4.0, 14.0))
+        period = float(rng.uniform(1.2, 5.0))
+        duty = float(rng.uniform(0.3, 0.6))
+        inside = np.abs(along - centre) < half_width
+        stripe = ((along - centre) / period) % 1.0 < duty
+        color = palette[int(rng.choice(len(palette), p=weights))]
+        if np.allclose(color, image[inside].mean(axis=0) if inside.any() else color, atol=0.15):
+            color = np.asarray(dark if _luminance(color) > 0.5 else light, dtype=np.float32)
+        mask = inside & stripe
+        image[mask] = 0.35 * image[mask] + 0.65 * color
+
+
+def _label_blocks(
+    canvas: U8,
+    rng: np.random.Generator,
+    ink: _Inks,
+) -> None:
+    """Step 4: label blocks with a border and text lines, drawn into ``canvas`` (0-255)."""
+    palette, weights, k, dark, light = ink.palette, ink.weights, ink.px_per_mm, ink.dark, ink.light
+    h, w = canvas.shape[:2]
+    area_mm2 = (h / k) * (w / k)
+    for _ in range(max(2, int(area_mm2 / 2500.0))):
+        bw, bh = rng.uniform(12.0, 55.0), rng.uniform(8.0, 35.0)
+        x0, y0 = rng.uniform(-bw / 2, w / k), rng.uniform(-bh / 2, h / k)
+        fill = palette[int(rng.choice(len(palette), p=weights))]
+        ink = dark if _luminance(fill) > 0.45 else light
+        fill = tuple(255.0 * float(c) for c in fill)
+        p0 = (round(x0 * k), round(y0 * k))
+        p1 = (round((x0 + bw) * k), round((y0 + bh) * k))
+        cv2.rectangle(canvas, p0, p1, fill, thickness=-1)
+        cv2.rectangle(canvas, p0, p1, ink, thickness=max(1, round(0.6 * k)))
+        cap = float(rng.uniform(1.5, 4.0))
+        y = y0 + 2.0 * cap
+        while y < y0 + bh - 0.5 * cap:
+            _draw_text_line(canvas, rng, ((x0 + 1.5) * k, y * k), cap * k, (bw - 3.0) * k, ink)
+            y += cap * float(rng.uniform(1.6, 2.2))
+
+
+def _marks_and_dots(
+    canvas: U8,
+    rng: np.random.Generator,
+    ink: _Inks,
+) -> None:
+    """Steps 5 and 6a: text-like marks everywhere, then dots, drawn into ``canvas``."""
+    palette, weights, k, dark, light = ink.palette, ink.weights, ink.px_per_mm, ink.dark, ink.light
+    h, w = canvas.shape[:2]
+    area_mm2 = (h / k) * (w / k)
+    for _ in range(int(area_mm2 / 350.0)):
+        cap = float(rng.uniform(1.2, 7.0))
+        x0, y0 = rng.uniform(-20.0, w / k), rng.uniform(0.0, h / k + cap)
+        under = canvas[min(h - 1, max(0, round(y0 * k))), min(w - 1, max(0, round(x0 * k)))]
+        ink = dark if _luminance(under / 255.0) > 0.45 else light
+        _draw_text_line(canvas, rng, (x0 * k, y0 * k), cap * k, rng.uniform(10.0, 60.0) * k, ink)
+    n_dots = int(area_mm2 / 15.0)
+    centres = np.stack([rng.uniform(0, w, n_dots), rng.uniform(0, h, n_dots)], axis=1)
+    radii = rng.uniform(0.15, 0.9, n_dots) * k
+    colors = 255.0 * palette[rng.choice(len(palette), size=n_dots, p=weights)]
+    for (cx, cy), r, c in zip(centres, radii, colors, strict=True):
+        cv2.circle(canvas, (round(cx), round(cy)), max(1, round(r)), tuple(float(v) for v in c), -1)
+
+
+def _shaded(canvas: U8, rng: np.random.Generator, k: float) -> U8:
+    """Steps 2 and 6b: multi-scale shading over everything and per-texel grain."""
+    h, w = canvas.shape[:2]
+    shade = _fbm(rng, (h, w), k, (12.0, 6.0, 3.0, 1.5, 0.75), gain=0.85)
+    image = canvas.astype(np.float32) / 255.0
+    fine = _fbm(rng, (h, w), k, (1.0, 0.5), gain=0.8)
+    image = 0.08 + 0.84 * image  # head-room, so that shading is never clipped flat
+    image *= (1.0 + 0.25 * shade)[..., None]
+    image += (0.12 * fine)[..., None]
+    image += rng.uniform(-0.03, 0.03, size=(h, w, 1)).astype(np.float32)
+    return np.clip(np.rint(image * 255.0), 0, 255).astype(np.uint8)
+
+
 def procedural_texture(
     palette_rgb: NDArray[np.uint8],
     weights: NDArray[np.float64],
@@ -154,71 +262,14 @@ def procedural_texture(
     cuts = np.quantile(field[:: max(1, h // 256), :: max(1, w // 256)], np.cumsum(weights)[:-1])
     region = np.searchsorted(cuts, field).astype(np.intp)
     image = palette[region]
-
-    # 3. bands of fine stripes
-    rows, cols = np.mgrid[0:h, 0:w].astype(np.float32)
-    for _ in range(int(rng.integers(4, 8))):
-        angle = float(rng.choice([0.0, 0.0, np.pi / 2, rng.uniform(0, np.pi)]))
-        nx, ny = np.cos(angle), np.sin(angle)
-        along = (cols * nx + rows * ny) / k  # mm across the band
-        centre = float(rng.uniform(along.min(), along.max()))
-        half_width = float(rng.uniform(4.0, 14.0))
-        period = float(rng.uniform(1.2, 5.0))
-        duty = float(rng.uniform(0.3, 0.6))
-        inside = np.abs(along - centre) < half_width
-        stripe = ((along - centre) / period) % 1.0 < duty
-        color = palette[int(rng.choice(len(palette), p=weights))]
-        if np.allclose(color, image[inside].mean(axis=0) if inside.any() else color, atol=0.15):
-            color = np.asarray(dark if _luminance(color) > 0.5 else light, dtype=np.float32)
-        mask = inside & stripe
-        image[mask] = 0.35 * image[mask] + 0.65 * color
-
+    _stripe_bands(
+        image, rng, _Inks(palette=palette, weights=weights, px_per_mm=k, dark=dark, light=light)
+    )  # 3.
     # drawing (OpenCV's text needs 8-bit images): colours as 0-255 tuples from here on
     canvas = np.clip(np.rint(image * 255.0), 0, 255).astype(np.uint8)
     dark = tuple(255.0 * c for c in dark)
     light = tuple(255.0 * c for c in light)
-
-    # 4. label blocks with a border and text lines
-    area_mm2 = (h / k) * (w / k)
-    for _ in range(max(2, int(area_mm2 / 2500.0))):
-        bw, bh = rng.uniform(12.0, 55.0), rng.uniform(8.0, 35.0)
-        x0, y0 = rng.uniform(-bw / 2, w / k), rng.uniform(-bh / 2, h / k)
-        fill = palette[int(rng.choice(len(palette), p=weights))]
-        ink = dark if _luminance(fill) > 0.45 else light
-        fill = tuple(255.0 * float(c) for c in fill)
-        p0 = (round(x0 * k), round(y0 * k))
-        p1 = (round((x0 + bw) * k), round((y0 + bh) * k))
-        cv2.rectangle(canvas, p0, p1, fill, thickness=-1)
-        cv2.rectangle(canvas, p0, p1, ink, thickness=max(1, round(0.6 * k)))
-        cap = float(rng.uniform(1.5, 4.0))
-        y = y0 + 2.0 * cap
-        while y < y0 + bh - 0.5 * cap:
-            _draw_text_line(canvas, rng, ((x0 + 1.5) * k, y * k), cap * k, (bw - 3.0) * k, ink)
-            y += cap * float(rng.uniform(1.6, 2.2))
-
-    # 5. text-like marks everywhere
-    for _ in range(int(area_mm2 / 350.0)):
-        cap = float(rng.uniform(1.2, 7.0))
-        x0, y0 = rng.uniform(-20.0, w / k), rng.uniform(0.0, h / k + cap)
-        under = canvas[min(h - 1, max(0, round(y0 * k))), min(w - 1, max(0, round(x0 * k)))]
-        ink = dark if _luminance(under / 255.0) > 0.45 else light
-        _draw_text_line(canvas, rng, (x0 * k, y0 * k), cap * k, rng.uniform(10.0, 60.0) * k, ink)
-
-    # 6a. dots
-    n_dots = int(area_mm2 / 15.0)
-    centres = np.stack([rng.uniform(0, w, n_dots), rng.uniform(0, h, n_dots)], axis=1)
-    radii = rng.uniform(0.15, 0.9, n_dots) * k
-    colors = 255.0 * palette[rng.choice(len(palette), size=n_dots, p=weights)]
-    for (cx, cy), r, c in zip(centres, radii, colors, strict=True):
-        cv2.circle(canvas, (round(cx), round(cy)), max(1, round(r)), tuple(float(v) for v in c), -1)
-
-    # 2. multi-scale shading over everything, 6b. per-texel grain
-    shade = _fbm(rng, shape_px, k, (12.0, 6.0, 3.0, 1.5, 0.75), gain=0.85)
-    image = canvas.astype(np.float32) / 255.0
-    fine = _fbm(rng, shape_px, k, (1.0, 0.5), gain=0.8)
-    image = 0.08 + 0.84 * image  # head-room, so that shading is never clipped flat
-    image *= (1.0 + 0.25 * shade)[..., None]
-    image += (0.12 * fine)[..., None]
-    image += rng.uniform(-0.03, 0.03, size=(h, w, 1)).astype(np.float32)
-    texture: U8 = np.clip(np.rint(image * 255.0), 0, 255).astype(np.uint8)
-    return texture
+    inks = _Inks(palette=palette, weights=weights, px_per_mm=k, dark=dark, light=light)
+    _label_blocks(canvas, rng, inks)  # 4.
+    _marks_and_dots(canvas, rng, inks)  # 5., 6a.
+    return _shaded(canvas, rng, k)  # 2., 6b.

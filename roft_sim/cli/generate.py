@@ -21,11 +21,15 @@ import logging
 import os
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from roft_sim.cli.assets import assets_dir_from_args
 from roft_sim.cli.output_dirs import prepare_output_dir
 from roft_sim.errors import ConfigError
+
+if TYPE_CHECKING:  # the generation and executor modules load only when a verb runs
+    from roft_sim.executors import Shard
+    from roft_sim.generation.runner import GenerationSummary
 
 __all__ = ["register", "add_executor_arguments", "executor_from_args", "shard_from_args"]
 
@@ -39,6 +43,47 @@ def _preset_help() -> str:
     from roft_sim.generation.presets import PRESETS
 
     return "; ".join(f"{p.name}: {p.description}" for p in PRESETS.values())
+
+
+def _add_run_arguments(parser: argparse.ArgumentParser) -> None:
+    """How ``generate`` runs: workers and executor, chunks, overwrite/resume, assets, output."""
+    add_executor_arguments(
+        parser,
+        workers_help="workers, each rendering with its own OpenGL context: local processes "
+        "(default 1 = in this process) or, with --executor ray, Ray actors (default: one per "
+        "CPU of the cluster)",
+        shard_help="generate only shard i of N (1-based, e.g. 2/4) of the frame chunks, for "
+        "array jobs sharing --out; the same command with --resume and no --shard finalizes "
+        "the sequences once every shard has finished (docs/scaleout.md)",
+    )
+    parser.add_argument(
+        "--chunk-frames",
+        type=int,
+        default=32,
+        help="most frames per work unit handed to a worker (default 32)",
+    )
+    parser.add_argument(
+        "--png-compression",
+        type=int,
+        metavar="LEVEL",
+        help="zlib level 0-9 of the PNG files (fast-ycb, bop; default 1, the fastest; 3 gives "
+        "files about 4 %% smaller, encoded 1.6x slower; docs/formats.md)",
+    )
+    parser.add_argument("--overwrite", action="store_true", help="empty a non-empty --out first")
+    parser.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue an interrupted run in --out: keep finished sequences and complete "
+        "frames, generate only the missing frames (same scenarios and options required)",
+    )
+    parser.add_argument(
+        "--assets",
+        type=Path,
+        help="folder of real YCB meshes searched first (default $ROFT_SIM_ASSETS; then the "
+        "cache, $ROFT_SIM_CACHE or ~/.cache/roft_sim; else procedural stand-ins)",
+    )
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar (also with -q)")
+    parser.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -102,43 +147,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         help="scenario seed (textures, depth noise, simulated networks; the trajectory keeps its "
         "own seed); default: each scenario's seed",
     )
-    add_executor_arguments(
-        parser,
-        workers_help="workers, each rendering with its own OpenGL context: local processes "
-        "(default 1 = in this process) or, with --executor ray, Ray actors (default: one per "
-        "CPU of the cluster)",
-        shard_help="generate only shard i of N (1-based, e.g. 2/4) of the frame chunks, for "
-        "array jobs sharing --out; the same command with --resume and no --shard finalizes "
-        "the sequences once every shard has finished (docs/scaleout.md)",
-    )
-    parser.add_argument(
-        "--chunk-frames",
-        type=int,
-        default=32,
-        help="most frames per work unit handed to a worker (default 32)",
-    )
-    parser.add_argument(
-        "--png-compression",
-        type=int,
-        metavar="LEVEL",
-        help="zlib level 0-9 of the PNG files (fast-ycb, bop; default 1, the fastest; 3 gives "
-        "files about 4 %% smaller, encoded 1.6x slower; docs/formats.md)",
-    )
-    parser.add_argument("--overwrite", action="store_true", help="empty a non-empty --out first")
-    parser.add_argument(
-        "--resume",
-        action="store_true",
-        help="continue an interrupted run in --out: keep finished sequences and complete "
-        "frames, generate only the missing frames (same scenarios and options required)",
-    )
-    parser.add_argument(
-        "--assets",
-        type=Path,
-        help="folder of real YCB meshes searched first (default $ROFT_SIM_ASSETS; then the "
-        "cache, $ROFT_SIM_CACHE or ~/.cache/roft_sim; else procedural stand-ins)",
-    )
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar (also with -q)")
-    parser.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
+    _add_run_arguments(parser)
     parser.set_defaults(func=_run)
 
 
@@ -215,6 +224,40 @@ def _scenario_paths(args: argparse.Namespace) -> tuple[list[Path], str | None]:
     return list(args.scenarios), None
 
 
+def _print_summary(
+    args: argparse.Namespace, summary: GenerationSummary, shard: Shard | None
+) -> None:
+    """What ``generate`` prints: the JSON summary, a shard's progress, or one line per sequence
+    (stdout) and the throughput (stderr)."""
+    if args.json:
+        print(json.dumps(summary.report(), indent=2))
+    elif shard is not None:
+        for s in summary.sequences:
+            print(f"{args.out / s.name}: {s.frames_generated} frames generated now")
+        print(
+            f"shard {shard}: {summary.frames_generated} frames in {summary.wall_s:.1f} s; once "
+            "every shard has finished, run the same command without --shard and with --resume "
+            "to finalize the sequences",
+            file=sys.stderr,
+        )
+    else:
+        for s in summary.sequences:
+            print(f"{s.path} ({s.n_frames} frames, {s.frames_generated} generated now)")
+            if s.visibility is not None:
+                v = s.visibility
+                print(
+                    f"  object visible fraction: mean {v['mean']:.3f}, p10 {v['p10']:.3f}, "
+                    f"p50 {v['p50']:.3f}, min {v['min']:.3f}; "
+                    f"{100 * v['frames_below_half']:.1f} % of frames below half visible"
+                )
+        print(
+            f"{summary.frames_generated} frames in {summary.wall_s:.1f} s "
+            f"({summary.frames_per_s:.2f} frames/s, {summary.workers} worker"
+            f"{'s' if summary.workers > 1 else ''})",
+            file=sys.stderr,
+        )
+
+
 def _run(args: argparse.Namespace) -> int:
     from roft_sim.assets import default_cache_dir
     from roft_sim.render.gl_backend import require_gl_backend
@@ -283,31 +326,5 @@ def _run(args: argparse.Namespace) -> int:
         # local: let generate_dataset choose (in this process when there is one unit)
         executor=None if args.executor == "local" else executor,
     )
-    if args.json:
-        print(json.dumps(summary.report(), indent=2))
-    elif shard is not None:
-        for s in summary.sequences:
-            print(f"{args.out / s.name}: {s.frames_generated} frames generated now")
-        print(
-            f"shard {shard}: {summary.frames_generated} frames in {summary.wall_s:.1f} s; once "
-            "every shard has finished, run the same command without --shard and with --resume "
-            "to finalize the sequences",
-            file=sys.stderr,
-        )
-    else:
-        for s in summary.sequences:
-            print(f"{s.path} ({s.n_frames} frames, {s.frames_generated} generated now)")
-            if s.visibility is not None:
-                v = s.visibility
-                print(
-                    f"  object visible fraction: mean {v['mean']:.3f}, p10 {v['p10']:.3f}, "
-                    f"p50 {v['p50']:.3f}, min {v['min']:.3f}; "
-                    f"{100 * v['frames_below_half']:.1f} % of frames below half visible"
-                )
-        print(
-            f"{summary.frames_generated} frames in {summary.wall_s:.1f} s "
-            f"({summary.frames_per_s:.2f} frames/s, {summary.workers} worker"
-            f"{'s' if summary.workers > 1 else ''})",
-            file=sys.stderr,
-        )
+    _print_summary(args, summary, shard)
     return 0

@@ -15,11 +15,14 @@ import os
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from roft_sim.cli.assets import assets_dir_from_args
 from roft_sim.cli.output_dirs import prepare_output_dir
 from roft_sim.errors import ConfigError, DatasetFormatError
+
+if TYPE_CHECKING:  # the harness loads only when the verb runs
+    from roft_sim.harness.paper import PaperResult
 
 __all__ = ["register"]
 
@@ -139,6 +142,34 @@ def _generate(args: argparse.Namespace, out: Path, progress: bool) -> tuple[Path
     return dataset, info
 
 
+def _print_result(
+    args: argparse.Namespace, out: Path, result: PaperResult, timing: dict[str, float]
+) -> None:
+    """The JSON summary (``--json``), or the tables (stdout) and where they are (stderr)."""
+    if args.json:
+        print(
+            json.dumps(
+                {
+                    "out": str(out),
+                    "tables": str(result.tables_md),
+                    "findings": [
+                        {"claim": f.claim, "holds": f.holds, "evidence": f.evidence}
+                        for f in result.findings
+                    ],
+                    "wall_s": timing,
+                },
+                indent=2,
+            )
+        )
+    else:
+        print(result.tables_md.read_text(encoding="utf-8"), end="")
+        print(
+            f"tables in {result.tables_md} (dataset {timing['dataset_s']} s, runs "
+            f"{timing['runs_s']} s)",
+            file=sys.stderr,
+        )
+
+
 def _run(args: argparse.Namespace) -> int:
     from roft_sim.executors import make_executor
     from roft_sim.harness.paper import paper_rows, plan_paper, run_paper
@@ -205,28 +236,7 @@ def _run(args: argparse.Namespace) -> int:
     )
     t2 = time.perf_counter()
     timing = {"dataset_s": round(t1 - t0, 1), "runs_s": round(t2 - t1, 1)}
-    if args.json:
-        print(
-            json.dumps(
-                {
-                    "out": str(out),
-                    "tables": str(result.tables_md),
-                    "findings": [
-                        {"claim": f.claim, "holds": f.holds, "evidence": f.evidence}
-                        for f in result.findings
-                    ],
-                    "wall_s": timing,
-                },
-                indent=2,
-            )
-        )
-    else:
-        print(result.tables_md.read_text(encoding="utf-8"), end="")
-        print(
-            f"tables in {result.tables_md} (dataset {timing['dataset_s']} s, runs "
-            f"{timing['runs_s']} s)",
-            file=sys.stderr,
-        )
+    _print_result(args, out, result, timing)
     return 0
 
 

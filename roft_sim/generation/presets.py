@@ -1,7 +1,8 @@
 """Shipped scenario files and the named presets of ``roft-sim generate --preset``.
 
 Every lookup of a shipped scenario file goes through :func:`shipped_scenarios_dir`, which asks
-:func:`roft_sim.shipped_files.scenarios_dir` (the package data folder ``roft_sim/scenarios/``).
+:func:`roft_sim.shipped_files.scenarios_dir` (``scenarios/`` in the repository, installed as
+the package data ``roft_sim.scenarios``).
 """
 
 from __future__ import annotations

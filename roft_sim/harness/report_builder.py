@@ -20,7 +20,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from roft_sim.datasets import open_sequence
 from roft_sim.datasets.atomic_files import atomic_write_bytes, atomic_write_text
@@ -203,6 +202,28 @@ def _video_scale(width: int, options: ReportOptions) -> float:
     return 1.0 if width <= 960 else 0.5
 
 
+def _frame_errors(folder: Path, n_frames: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per frame (n_frames,) position [cm] and rotation [deg] error of a run folder; NaN where
+    there is none (no ground truth, or a frame not scored)."""
+    err_t = np.full(n_frames, np.nan)
+    err_a = np.full(n_frames, np.nan)
+    if (folder / FRAME_ERRORS_FILE).is_file():
+        errors = load_frame_errors(folder / FRAME_ERRORS_FILE)
+        err_t[errors.frame_index] = errors.t_err_norm_cm
+        err_a[errors.frame_index] = errors.a_err_deg
+    return err_t, err_a
+
+
+def _scaled(image: np.ndarray, scale: float) -> np.ndarray:
+    """``image`` (H, W, 3) resized by ``scale`` (area interpolation); itself at scale 1."""
+    if scale == 1.0:
+        return image
+    import cv2
+
+    size = (int(round(image.shape[1] * scale)), int(round(image.shape[0] * scale)))
+    return cv2.resize(image, size, interpolation=cv2.INTER_AREA)
+
+
 def _write_video(
     seq_record: dict[str, Any],
     run_record: dict[str, Any],
@@ -227,16 +248,7 @@ def _write_video(
         with_flow=False,
     )
     estimates = load_estimates(folder / ESTIMATES_FILE)
-    errors = (
-        load_frame_errors(folder / FRAME_ERRORS_FILE)
-        if (folder / FRAME_ERRORS_FILE).is_file()
-        else None
-    )
-    err_t = np.full(len(sequence), np.nan)
-    err_a = np.full(len(sequence), np.nan)
-    if errors is not None:
-        err_t[errors.frame_index] = errors.t_err_norm_cm
-        err_a[errors.frame_index] = errors.a_err_deg
+    err_t, err_a = _frame_errors(folder, len(sequence))
     intr = sequence.intrinsics
     scale = _video_scale(intr.width_px, options)
     n = (
@@ -276,15 +288,7 @@ def _write_video(
                     mask_text,
                 ),
             )
-            image: NDArray[Any] = draw_overlay(frame)  # uint8; cv2.resize keeps the dtype
-            if scale != 1.0:
-                import cv2
-
-                image = cv2.resize(
-                    image,
-                    (int(round(image.shape[1] * scale)), int(round(image.shape[0] * scale))),
-                    interpolation=cv2.INTER_AREA,
-                )
+            image = _scaled(draw_overlay(frame), scale)
             video.write(image)
             if k in wanted:
                 still = out_dir / "stills" / f"{name}_k{k:04d}.png"
@@ -375,21 +379,12 @@ def _sync_rows(metrics: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
 
 
 # ------------------------------------------------------------------------------------ reports
-def _run_report(results: Path, out: Path, options: ReportOptions) -> ReportResult:
-    run = read_json(results / RUN_FILE)
-    metrics = read_json(results / METRICS_FILE)
-    names = [seq["name"] for seq in run["sequences"]]
-    unknown = [n for n in options.sequences or () if n not in names]
-    if unknown:
-        raise ConfigError(
-            f"{str(results)!r} has no sequence {unknown[0]!r}; its sequences: {', '.join(names)}"
-        )
+def _run_header(results: Path, run: dict[str, Any], metrics: dict[str, Any]) -> list[str]:
+    """The report's Markdown down to the sequences: configuration, metrics, synchronisation."""
     tracker = run["tracker"]
     opts = run["options"]
     faults = fault_config_from_mapping(dict(opts["faults"]))
-    files: list[Path] = []
-    notes: list[str] = []
-    md = [
+    return [
         f"# Report: {tracker['name']} on {len(run['sequences'])} sequence(s)",
         "",
         f"Results folder: `{results}`. Tracker: **{tracker['name']}** ({tracker['description']});"
@@ -421,63 +416,89 @@ def _run_report(results: Path, out: Path, options: ReportOptions) -> ReportResul
         "",
         markdown_table(_SYNC_COLUMNS, _sync_rows(metrics)),
     ]
+
+
+def _sequence_section(
+    seq: dict[str, Any], run: dict[str, Any], results: Path, out: Path, options: ReportOptions
+) -> tuple[list[str], list[Path], list[str]]:
+    """One sequence's Markdown, the files written for it (plots, video, stills) and the notes."""
+    tracker = run["tracker"]
+    files: list[Path] = []
+    notes: list[str] = []
+    name = seq["name"]
+    folder = results / name
+    md = [f"## {name}", ""]
+    md.append(
+        f"{seq['frames']} frames at {seq['fps']} fps, {seq['resolution'][0]}x"
+        f"{seq['resolution'][1]}; inputs: poses `{seq['inputs']['poses']}`, masks "
+        f"`{seq['inputs']['masks']}`, flow `{seq['inputs']['flow']}`."
+    )
+    md.append("")
+    arrivals = np.unique(load_deliveries(folder / DELIVERIES_FILE)["pose"].arrival_k)
+    m = None
+    if (folder / FRAME_ERRORS_FILE).is_file():
+        m = load_frame_errors(folder / FRAME_ERRORS_FILE)
+        p1 = _error_plot(m, arrivals, out / "plots" / f"{name}_errors.png", name, tracker["name"])
+        p2 = _accuracy_plot(m, out / "plots" / f"{name}_accuracy.png", name, tracker["name"])
+        files += [p1, p2]
+        md += [f"![errors]({_rel(p1, out)})", "", f"![accuracy]({_rel(p2, out)})", ""]
+        gt = _ground_truth_if_available(seq)
+        if gt is not None:
+            p3 = _velocity_plot(
+                load_estimates(folder / ESTIMATES_FILE),
+                gt,
+                arrivals,
+                out / "plots" / f"{name}_velocity.png",
+                name,
+                tracker["name"],
+            )
+            files.append(p3)
+            md += [f"![velocity]({_rel(p3, out)})", ""]
+    else:
+        notes.append(f"{name}: no ground truth, no error plots")
+    if options.video:
+        try:
+            written, note = _write_video(
+                seq, run, folder, out, options, _still_frames(m, arrivals, seq["frames"])
+            )
+        except (RoftSimError, OSError) as e:
+            written, note = [], f"{name}: no overlay video ({e})"
+        if note:
+            notes.append(note)
+        files += written
+        if written:
+            md.append(
+                f"Overlay video: [{_rel(written[0], out)}]({_rel(written[0], out)}) "
+                "(green: ground truth, magenta: estimate, yellow: the newest mask the "
+                "tracker received, cyan: a pose detection as it arrives, red banner: "
+                "arrival)."
+            )
+            md.append("")
+            md += [f"![{p.stem}]({_rel(p, out)})" for p in written[1:]]
+            md.append("")
+    return md, files, notes
+
+
+def _run_report(results: Path, out: Path, options: ReportOptions) -> ReportResult:
+    run = read_json(results / RUN_FILE)
+    metrics = read_json(results / METRICS_FILE)
+    names = [seq["name"] for seq in run["sequences"]]
+    unknown = [n for n in options.sequences or () if n not in names]
+    if unknown:
+        raise ConfigError(
+            f"{str(results)!r} has no sequence {unknown[0]!r}; its sequences: {', '.join(names)}"
+        )
+    md = _run_header(results, run, metrics)
+    files: list[Path] = []
+    notes: list[str] = []
     wanted = set(options.sequences) if options.sequences else None
     for seq in run["sequences"]:
-        name = seq["name"]
-        if wanted is not None and name not in wanted:
+        if wanted is not None and seq["name"] not in wanted:
             continue
-        folder = results / name
-        md += [f"## {name}", ""]
-        md.append(
-            f"{seq['frames']} frames at {seq['fps']} fps, {seq['resolution'][0]}x"
-            f"{seq['resolution'][1]}; inputs: poses `{seq['inputs']['poses']}`, masks "
-            f"`{seq['inputs']['masks']}`, flow `{seq['inputs']['flow']}`."
-        )
-        md.append("")
-        arrivals = np.unique(load_deliveries(folder / DELIVERIES_FILE)["pose"].arrival_k)
-        m = None
-        if (folder / FRAME_ERRORS_FILE).is_file():
-            m = load_frame_errors(folder / FRAME_ERRORS_FILE)
-            p1 = _error_plot(
-                m, arrivals, out / "plots" / f"{name}_errors.png", name, tracker["name"]
-            )
-            p2 = _accuracy_plot(m, out / "plots" / f"{name}_accuracy.png", name, tracker["name"])
-            files += [p1, p2]
-            md += [f"![errors]({_rel(p1, out)})", "", f"![accuracy]({_rel(p2, out)})", ""]
-            gt = _ground_truth_if_available(seq)
-            if gt is not None:
-                p3 = _velocity_plot(
-                    load_estimates(folder / ESTIMATES_FILE),
-                    gt,
-                    arrivals,
-                    out / "plots" / f"{name}_velocity.png",
-                    name,
-                    tracker["name"],
-                )
-                files.append(p3)
-                md += [f"![velocity]({_rel(p3, out)})", ""]
-        else:
-            notes.append(f"{name}: no ground truth, no error plots")
-        if options.video:
-            try:
-                written, note = _write_video(
-                    seq, run, folder, out, options, _still_frames(m, arrivals, seq["frames"])
-                )
-            except (RoftSimError, OSError) as e:
-                written, note = [], f"{name}: no overlay video ({e})"
-            if note:
-                notes.append(note)
-            files += written
-            if written:
-                md.append(
-                    f"Overlay video: [{_rel(written[0], out)}]({_rel(written[0], out)}) "
-                    "(green: ground truth, magenta: estimate, yellow: the newest mask the "
-                    "tracker received, cyan: a pose detection as it arrives, red banner: "
-                    "arrival)."
-                )
-                md.append("")
-                md += [f"![{p.stem}]({_rel(p, out)})" for p in written[1:]]
-                md.append("")
+        section, written, sequence_notes = _sequence_section(seq, run, results, out, options)
+        md += section
+        files += written
+        notes += sequence_notes
     if notes:
         md += ["## Notes", "", *[f"- {n}" for n in notes], ""]
     report = out / "report.md"

@@ -150,6 +150,84 @@ def tracker_description(spec: TrackerSpec) -> dict[str, Any]:
     }
 
 
+def _sequence_record(source: SequenceSource, run: SequenceRun) -> dict[str, Any]:
+    """The ``run.json`` entry of one sequence: where it came from, its size, inputs and seeds."""
+    seq = source.sequence
+    return {
+        "name": seq.name,
+        "path": None if source.path is None else str(source.path),
+        "format": None if source.path is None else detect_format(source.path),
+        "object": seq.object_name,
+        "frames": len(seq),
+        "fps": int(seq.fps),
+        "resolution": [seq.intrinsics.width_px, seq.intrinsics.height_px],
+        "inputs": run.inputs,
+        "seeds": run.seeds.describe(),
+        "depth_renderer_built": run.depth_renderer_built,
+        "wall_s": round(run.wall_s, 3),
+    }
+
+
+def _pooled_metrics(
+    evaluations: dict[str, SequenceEvaluation],
+) -> tuple[dict[str, SequenceMetrics], dict[str, dict[str, Any]]]:
+    """ALL and MEAN over the scored sequences, and the ``metrics.json`` entries: ALL, MEAN, then
+    one per sequence."""
+    scored = {n: e.metrics for n, e in evaluations.items() if e.metrics is not None}
+    pooled: dict[str, SequenceMetrics] = pool_metrics(scored) if scored else {}
+    metrics: dict[str, dict[str, Any]] = {}
+    for name in (POOLED_ALL, POOLED_MEAN):
+        if name in pooled:
+            metrics[name] = pooled[name].summary()
+    for name, evaluation in evaluations.items():
+        metrics[name] = evaluation.entry()
+    return pooled, metrics
+
+
+def _run_each(
+    sources: Sequence[SequenceSource],
+    options: RunOptions,
+    spec: TrackerSpec,
+    out: Path,
+    depth_renderer_factory: DepthRendererFactory | None,
+    progress: bool,
+    on_sequence_done: Callable[[SequenceRun, SequenceEvaluation], None] | None,
+    tum: bool,
+) -> tuple[list[SequenceRun], dict[str, SequenceEvaluation], list[dict[str, Any]]]:
+    """Runs, scores and writes every sequence in turn (one progress bar over all frames; ``tum``:
+    TUM files too); returns the runs, their evaluations by name and their ``run.json`` records."""
+    from tqdm import tqdm
+
+    total = sum(len(s.sequence) for s in sources)
+    runs: list[SequenceRun] = []
+    evaluations: dict[str, SequenceEvaluation] = {}
+    described = []
+    with tqdm(
+        total=total, unit="frame", desc=f"run {spec.name}", disable=not progress, leave=False
+    ) as bar:
+        for source in sources:
+            seq = source.sequence
+            bar.set_postfix_str(seq.name)
+            model = resolve_object_model(seq)
+            run = run_sequence(
+                seq,
+                options,
+                spec=spec,
+                object_model=model,
+                depth_renderer_factory=depth_renderer_factory,
+                progress=bar.update,
+            )
+            evaluation = evaluate_run(run, invalid=options.invalid)
+            write_sequence_outputs(out / seq.name, run, evaluation, tum=tum)
+            runs.append(run)
+            evaluations[seq.name] = evaluation
+            described.append(_sequence_record(source, run))
+            if on_sequence_done is not None:
+                on_sequence_done(run, evaluation)
+
+    return runs, evaluations, described
+
+
 def run_sequences(
     sources: Sequence[SequenceSource],
     options: RunOptions,
@@ -204,57 +282,10 @@ def run_sequences(
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
 
-    from tqdm import tqdm
-
-    total = sum(len(s.sequence) for s in sources)
-    runs: list[SequenceRun] = []
-    evaluations: dict[str, SequenceEvaluation] = {}
-    described = []
-    with tqdm(
-        total=total, unit="frame", desc=f"run {spec.name}", disable=not progress, leave=False
-    ) as bar:
-        for source in sources:
-            seq = source.sequence
-            bar.set_postfix_str(seq.name)
-            model = resolve_object_model(seq)
-            run = run_sequence(
-                seq,
-                options,
-                spec=spec,
-                object_model=model,
-                depth_renderer_factory=depth_renderer_factory,
-                progress=bar.update,
-            )
-            evaluation = evaluate_run(run, invalid=options.invalid)
-            write_sequence_outputs(out / seq.name, run, evaluation, tum=tum)
-            runs.append(run)
-            evaluations[seq.name] = evaluation
-            described.append(
-                {
-                    "name": seq.name,
-                    "path": None if source.path is None else str(source.path),
-                    "format": None if source.path is None else detect_format(source.path),
-                    "object": seq.object_name,
-                    "frames": len(seq),
-                    "fps": int(seq.fps),
-                    "resolution": [seq.intrinsics.width_px, seq.intrinsics.height_px],
-                    "inputs": run.inputs,
-                    "seeds": run.seeds.describe(),
-                    "depth_renderer_built": run.depth_renderer_built,
-                    "wall_s": round(run.wall_s, 3),
-                }
-            )
-            if on_sequence_done is not None:
-                on_sequence_done(run, evaluation)
-
-    scored = {n: e.metrics for n, e in evaluations.items() if e.metrics is not None}
-    pooled: dict[str, SequenceMetrics] = pool_metrics(scored) if scored else {}
-    metrics: dict[str, dict[str, Any]] = {}
-    for name in (POOLED_ALL, POOLED_MEAN):
-        if name in pooled:
-            metrics[name] = pooled[name].summary()
-    for name, evaluation in evaluations.items():
-        metrics[name] = evaluation.entry()
+    runs, evaluations, described = _run_each(
+        sources, options, spec, out, depth_renderer_factory, progress, on_sequence_done, tum
+    )
+    pooled, metrics = _pooled_metrics(evaluations)
     write_json(out / METRICS_FILE, metrics)
     tree = None
     if layout == "reference":

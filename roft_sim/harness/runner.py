@@ -46,6 +46,7 @@ from roft_sim.harness.robust_start import RobustStartGate
 from roft_sim.records import Estimate, ObjectModel, PoseTrack
 from roft_sim.sensors.flow_sources import make_flow_source
 from roft_sim.trackers import (
+    Tracker,
     TrackerContext,
     TrackerSpec,
     create_tracker,
@@ -209,6 +210,51 @@ def make_observation_stream(
     return stream, inputs, seeds
 
 
+def _initial_estimate(
+    options: RunOptions, sequence_name: str, ground_truth: PoseTrack | None
+) -> Estimate | None:
+    """What the tracker is reset with: the ground truth of frame 0 for ``--init gt``, else None
+    (the tracker starts from its first detection)."""
+    if options.init != "gt":
+        return None
+    if ground_truth is None:
+        raise ConfigError(
+            f"--init gt needs ground truth, and sequence {sequence_name!r} has none; use "
+            "--init first-detection"
+        )
+    return initial_estimate_from_ground_truth(ground_truth)
+
+
+def _step_through(
+    stream: ObservationStream,
+    tracker: Tracker,
+    n_frames: int,
+    tracker_name: str,
+    progress: Callable[[int], object] | None,
+    gate: RobustStartGate | None,
+) -> tuple[list[Estimate], F64, F64]:
+    """Feeds frames 0 .. n_frames - 1 to the tracker (through the robust-start ``gate`` when
+    there is one); returns the checked estimates and, per frame, the tracker's step time and
+    the observation's load time [s]."""
+    estimates: list[Estimate] = []
+    step_times = np.empty(n_frames)
+    load_times = np.empty(n_frames)
+    for k in range(n_frames):
+        a = time.perf_counter()
+        observation = stream.observation(k)
+        if gate is not None:
+            observation = gate.filter(observation)
+        b = time.perf_counter()
+        estimate = tracker.step(observation)
+        c = time.perf_counter()
+        estimates.append(_checked(estimate, k, tracker_name))
+        load_times[k] = b - a
+        step_times[k] = c - b
+        if progress is not None:
+            progress(1)
+    return estimates, step_times, load_times
+
+
 def run_sequence(
     sequence: Sequence,
     options: RunOptions,
@@ -264,33 +310,10 @@ def run_sequence(
     )
     tracker = create_tracker(spec, context, options.tracker_config)
     ground_truth = sequence.ground_truth()
-    initial = None
-    if options.init == "gt":
-        if ground_truth is None:
-            raise ConfigError(
-                f"--init gt needs ground truth, and sequence {sequence.name!r} has none; use "
-                "--init first-detection"
-            )
-        initial = initial_estimate_from_ground_truth(ground_truth)
-    tracker.reset(initial)
-
-    n = len(sequence)
-    estimates: list[Estimate] = []
-    step_times = np.empty(n)
-    load_times = np.empty(n)
-    for k in range(n):
-        a = time.perf_counter()
-        observation = stream.observation(k)
-        if gate is not None:
-            observation = gate.filter(observation)
-        b = time.perf_counter()
-        estimate = tracker.step(observation)
-        c = time.perf_counter()
-        estimates.append(_checked(estimate, k, spec.name))
-        load_times[k] = b - a
-        step_times[k] = c - b
-        if progress is not None:
-            progress(1)
+    tracker.reset(_initial_estimate(options, sequence.name, ground_truth))
+    estimates, step_times, load_times = _step_through(
+        stream, tracker, len(sequence), spec.name, progress, gate
+    )
     schedule = stream.schedule
     return SequenceRun(
         sequence_name=sequence.name,

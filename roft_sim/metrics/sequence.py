@@ -209,6 +209,66 @@ def _as_rows(name: str, a: ArrayLike | None, n: int, width: int) -> F64 | None:
     return arr
 
 
+def _checked_poses(
+    T_est: ArrayLike, T_gt: ArrayLike, valid: ArrayLike | None, invalid: str
+) -> tuple[F64, F64, NDArray[np.bool_]]:
+    """``T_est``, ``T_gt`` as (N, 4, 4) float64 and ``valid`` as (N,) bool (None = all), checked
+    with ``invalid`` (see :func:`evaluate_sequence`)."""
+    T_est = np.asarray(T_est, dtype=np.float64)
+    T_gt = np.asarray(T_gt, dtype=np.float64)
+    n = T_gt.shape[0] if T_gt.ndim == 3 else -1
+    if T_est.shape != (n, 4, 4) or T_gt.shape != (n, 4, 4):
+        raise ValueError(
+            f"T_est and T_gt must both have shape (N, 4, 4), got {T_est.shape} and {T_gt.shape}"
+        )
+    if invalid not in INVALID_POLICIES:
+        raise ValueError(
+            f"invalid must be 'failure', 'exclude', 'as_given' or 'hold', got {invalid!r}"
+        )
+    ok = np.ones(n, bool) if valid is None else np.asarray(valid, dtype=bool)
+    if ok.shape != (n,):
+        raise ValueError(f"valid must have shape ({n},), got {ok.shape}")
+    return T_est, T_gt, ok
+
+
+def _velocity_errors(
+    index: NDArray[np.intp],
+    from_k: NDArray[np.intp],
+    Tg: F64,
+    scored: NDArray[np.bool_],
+    v_obj_gt: F64 | None,
+    w_gt: F64 | None,
+    v_obj_est: F64 | None,
+    w_est: F64 | None,
+    twist: F64 | None,
+) -> tuple[F64, F64]:
+    """Per scored frame ``index`` (F = index.size), scored with the estimate of frame ``from_k``
+    (the held one under ``invalid="hold"``, else the same frame), the linear (F, 3) [cm/s] and
+    angular (F, 3) [deg/s] velocity errors, estimate minus ground truth, camera frame; NaN rows where a frame is not
+    scored or either side is missing. A spatial twist is scored at the ground-truth origin
+    ``t_gt`` (rows of ``Tg``, the ground truth of the kept frames)."""
+    f = index.size
+    v_err = np.full((f, 3), np.nan)
+    w_err = np.full((f, 3), np.nan)
+    if v_obj_gt is None or w_gt is None:
+        if any(x is not None for x in (v_obj_est, w_est, twist)):
+            raise ValueError("velocity estimates were given without v_obj_gt and w_gt")
+        return v_err, w_err
+    if twist is not None:
+        w_hat = twist[from_k, 3:]
+        v_hat = v_obj_from_v_o(twist[from_k, :3], w_hat, Tg[:, :3, 3])
+    elif v_obj_est is not None and w_est is not None:
+        v_hat, w_hat = v_obj_est[from_k], w_est[from_k]
+    else:
+        return v_err, w_err
+    v_err = (v_hat - v_obj_gt[index]) * _CM
+    w_err = (w_hat - w_gt[index]) * _DEG
+    rows = np.isfinite(v_err).all(1) & np.isfinite(w_err).all(1) & scored
+    v_err[~rows] = np.nan
+    w_err[~rows] = np.nan
+    return v_err, w_err
+
+
 def evaluate_sequence(
     T_est: ArrayLike,
     T_gt: ArrayLike,
@@ -248,20 +308,8 @@ def evaluate_sequence(
     Returns:
         The :class:`SequenceMetrics`.
     """
-    T_est = np.asarray(T_est, dtype=np.float64)
-    T_gt = np.asarray(T_gt, dtype=np.float64)
-    n = T_gt.shape[0] if T_gt.ndim == 3 else -1
-    if T_est.shape != (n, 4, 4) or T_gt.shape != (n, 4, 4):
-        raise ValueError(
-            f"T_est and T_gt must both have shape (N, 4, 4), got {T_est.shape} and {T_gt.shape}"
-        )
-    if invalid not in INVALID_POLICIES:
-        raise ValueError(
-            f"invalid must be 'failure', 'exclude', 'as_given' or 'hold', got {invalid!r}"
-        )
-    ok = np.ones(n, bool) if valid is None else np.asarray(valid, dtype=bool)
-    if ok.shape != (n,):
-        raise ValueError(f"valid must have shape ({n},), got {ok.shape}")
+    T_est, T_gt, ok = _checked_poses(T_est, T_gt, valid, invalid)
+    n = T_gt.shape[0]
     v_obj_gt = _as_rows("v_obj_gt", v_obj_gt, n, 3)
     w_gt = _as_rows("w_gt", w_gt, n, 3)
     v_obj_est = _as_rows("v_obj_est", v_obj_est, n, 3)
@@ -292,26 +340,9 @@ def evaluate_sequence(
     t_err[~scored] = np.nan
     a_err[~scored] = np.nan
 
-    v_err = np.full((f, 3), np.nan)
-    w_err = np.full((f, 3), np.nan)
-    if v_obj_gt is not None and w_gt is not None:
-        v_hat: F64 | None
-        w_hat: F64 | None
-        if twist is not None:
-            w_hat = twist[from_k, 3:]
-            v_hat = v_obj_from_v_o(twist[from_k, :3], w_hat, Tg[:, :3, 3])
-        elif v_obj_est is not None and w_est is not None:
-            v_hat, w_hat = v_obj_est[from_k], w_est[from_k]
-        else:
-            v_hat = w_hat = None
-        if v_hat is not None and w_hat is not None:
-            v_err = (v_hat - v_obj_gt[index]) * _CM
-            w_err = (w_hat - w_gt[index]) * _DEG
-            rows = np.isfinite(v_err).all(1) & np.isfinite(w_err).all(1) & scored
-            v_err[~rows] = np.nan
-            w_err[~rows] = np.nan
-    elif any(x is not None for x in (v_obj_est, w_est, twist)):
-        raise ValueError("velocity estimates were given without v_obj_gt and w_gt")
+    v_err, w_err = _velocity_errors(
+        index, from_k, Tg, scored, v_obj_gt, w_gt, v_obj_est, w_est, twist
+    )
 
     times = None if step_times_s is None else np.asarray(step_times_s, dtype=np.float64)
     return _metrics_from_frames(

@@ -175,6 +175,24 @@ def component_indices(components: str | Sequence[str]) -> tuple[NDArray[np.int64
     return np.array([index[c] for c in names], dtype=np.int64), names
 
 
+def _report_labels(
+    frames: ArrayLike | None, components: tuple[str, ...] | None, steps: int, n: int
+) -> tuple[NDArray[np.int64], tuple[str, ...]]:
+    """The (steps,) frame index of each step (default ``0..steps-1``) and the n component names
+    (default ``x0, x1, ...``) of a consistency report."""
+    frame_index = (
+        np.arange(steps, dtype=np.int64)
+        if frames is None
+        else np.asarray(frames, dtype=np.int64).reshape(-1)
+    )
+    if frame_index.shape != (steps,):
+        raise ValueError(f"frames must have {steps} entries, got {frame_index.shape}")
+    names = components if components is not None else tuple(f"x{i}" for i in range(n))
+    if len(names) != n:
+        raise ValueError(f"{len(names)} component names for dimension {n}")
+    return frame_index, tuple(names)
+
+
 def check_error_consistency(
     errors: ArrayLike,
     covariances: ArrayLike,
@@ -224,16 +242,7 @@ def check_error_consistency(
         values = mahalanobis_squared(e, P)
     except ValueError as err:
         raise ValueError(f"{statistic}: {err} (index = (run, step))") from None
-    frame_index = (
-        np.arange(steps, dtype=np.int64)
-        if frames is None
-        else np.asarray(frames, dtype=np.int64).reshape(-1)
-    )
-    if frame_index.shape != (steps,):
-        raise ValueError(f"frames must have {steps} entries, got {frame_index.shape}")
-    names = components if components is not None else tuple(f"x{i}" for i in range(n))
-    if len(names) != n:
-        raise ValueError(f"{len(names)} component names for dimension {n}")
+    frame_index, names = _report_labels(frames, components, steps, n)
     per_step = values.mean(axis=0)
     lower, upper = chi2_bounds(n, runs, confidence=confidence)
     if independent_steps is None:
@@ -260,6 +269,23 @@ def check_error_consistency(
         sided=sided,
         min_fraction_inside=float(min_fraction_inside),
     )
+
+
+def _selected_frames(frames: ArrayLike | slice | None, n_frames: int) -> NDArray[np.int64]:
+    """The frame indices chosen by ``frames`` (indices, a slice, a bool mask, or None = all),
+    checked to lie in ``[0, n_frames)``."""
+    if frames is None:
+        selected = np.arange(n_frames)
+    elif isinstance(frames, slice):
+        selected = np.arange(n_frames)[frames]
+    else:
+        f = np.asarray(frames)
+        selected = np.flatnonzero(f) if f.dtype == np.bool_ else f.astype(np.int64)
+    if selected.size == 0:
+        raise ValueError("no frames selected")
+    if selected.min() < 0 or selected.max() >= n_frames:
+        raise ValueError(f"frames must lie in [0, {n_frames}), got {selected.tolist()}")
+    return selected
 
 
 def check_consistency(
@@ -303,17 +329,7 @@ def check_consistency(
     truth_list = [truths] * len(runs) if isinstance(truths, PoseTrack) else list(truths)
     if len(truth_list) != len(runs):
         raise ValueError(f"{len(truth_list)} ground truths for {len(runs)} runs")
-    if frames is None:
-        selected = np.arange(n_frames)
-    elif isinstance(frames, slice):
-        selected = np.arange(n_frames)[frames]
-    else:
-        f = np.asarray(frames)
-        selected = np.flatnonzero(f) if f.dtype == np.bool_ else f.astype(np.int64)
-    if selected.size == 0:
-        raise ValueError("no frames selected")
-    if selected.min() < 0 or selected.max() >= n_frames:
-        raise ValueError(f"frames must lie in [0, {n_frames}), got {selected.tolist()}")
+    selected = _selected_frames(frames, n_frames)
     idx, names = component_indices(components)
     errors = np.empty((len(runs), selected.size, idx.size))
     covs = np.empty((len(runs), selected.size, idx.size, idx.size))

@@ -23,6 +23,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from roft_sim.records import Estimate, Observation
 
@@ -75,6 +76,51 @@ def _finite(name: str, value: object, where: str, problems: list[str]) -> bool:
     return True
 
 
+def _observation_problems(
+    estimates: Sequence[Estimate], observations: Sequence[Observation]
+) -> list[str]:
+    """One estimate per observation, increasing time stamps, and matching frame indices."""
+    problems = []
+    if len(observations) != len(estimates):
+        problems.append(
+            f"{len(estimates)} estimates for {len(observations)} observations (one each)"
+        )
+    previous_t = -np.inf
+    for obs in observations:
+        if not (np.isfinite(obs.t_s) and obs.t_s > previous_t):
+            problems.append(
+                f"frame {obs.k}: time stamp {obs.t_s} s does not increase (previous {previous_t} s)"
+            )
+        previous_t = obs.t_s
+    for obs, est in zip(observations, estimates, strict=False):
+        if est.k != obs.k:
+            problems.append(f"frame {obs.k}: the estimate is for frame {est.k}")
+    return problems
+
+
+def _covariance_problems(
+    covariance: ArrayLike, where: str, max_condition: float, problems: list[str]
+) -> float:
+    """Appends to ``problems`` what is wrong with one (12, 12) covariance (asymmetric, not
+    positive definite, numerically singular); returns its smallest eigenvalue."""
+    P = np.asarray(covariance, dtype=np.float64)
+    asym = float(np.abs(P - P.T).max())
+    scale = float(np.abs(P).max())
+    if asym > 1e-12 * max(scale, 1e-300):
+        problems.append(f"{where}: covariance not symmetric, max |P - P^T| = {asym:.2e}")
+    eig = np.linalg.eigvalsh(0.5 * (P + P.T))
+    if eig[0] <= 0:
+        problems.append(
+            f"{where}: covariance not positive definite, smallest eigenvalue {eig[0]:.3e}"
+        )
+    elif eig[-1] / eig[0] > max_condition:
+        problems.append(
+            f"{where}: covariance condition number {eig[-1] / eig[0]:.2e} > "
+            f"{max_condition:.0e} (numerically singular)"
+        )
+    return float(eig[0])
+
+
 def check_well_formed(
     estimates: Sequence[Estimate],
     observations: Sequence[Observation] | None = None,
@@ -102,21 +148,7 @@ def check_well_formed(
     min_eig = np.inf
     max_orth = 0.0
     if observations is not None:
-        if len(observations) != len(estimates):
-            problems.append(
-                f"{len(estimates)} estimates for {len(observations)} observations (one each)"
-            )
-        previous_t = -np.inf
-        for obs in observations:
-            if not (np.isfinite(obs.t_s) and obs.t_s > previous_t):
-                problems.append(
-                    f"frame {obs.k}: time stamp {obs.t_s} s does not increase (previous "
-                    f"{previous_t} s)"
-                )
-            previous_t = obs.t_s
-        for obs, est in zip(observations, estimates, strict=False):
-            if est.k != obs.k:
-                problems.append(f"frame {obs.k}: the estimate is for frame {est.k}")
+        problems += _observation_problems(estimates, observations)
     previous_k: int | None = None
     for est in estimates:
         where = f"frame {est.k}"
@@ -145,27 +177,12 @@ def check_well_formed(
         det = float(np.linalg.det(R))
         if det <= 0:
             problems.append(f"{where}: rotation has determinant {det:.3f} (a reflection)")
-        P = est.covariance
-        if P is None:
+        if est.covariance is None:
             if require_covariance:
                 problems.append(f"{where}: no covariance")
             continue
-        P = np.asarray(P, dtype=np.float64)
-        asym = float(np.abs(P - P.T).max())
-        scale = float(np.abs(P).max())
-        if asym > 1e-12 * max(scale, 1e-300):
-            problems.append(f"{where}: covariance not symmetric, max |P - P^T| = {asym:.2e}")
-        eig = np.linalg.eigvalsh(0.5 * (P + P.T))
-        min_eig = min(min_eig, float(eig[0]))
-        if eig[0] <= 0:
-            problems.append(
-                f"{where}: covariance not positive definite, smallest eigenvalue {eig[0]:.3e}"
-            )
-        elif eig[-1] / eig[0] > max_condition:
-            problems.append(
-                f"{where}: covariance condition number {eig[-1] / eig[0]:.2e} > "
-                f"{max_condition:.0e} (numerically singular)"
-            )
+        smallest = _covariance_problems(est.covariance, where, max_condition, problems)
+        min_eig = min(min_eig, smallest)
     return WellFormedReport(
         estimates=len(estimates),
         problems=tuple(problems),

@@ -40,6 +40,89 @@ def _orthonormalise(R: NDArray[np.float64]) -> NDArray[np.float64]:
     return rotation
 
 
+def _scene_gt_entries(path: Path) -> dict[int, list[dict[str, Any]]]:
+    """The annotations of ``scene_gt.json`` per image id, each with an integer ``obj_id``."""
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise DatasetFormatError(
+            f"BOP file {located(path)} does not exist; give scene_gt.json or its scene folder"
+        ) from None
+    except UnicodeDecodeError as e:
+        raise DatasetFormatError(
+            f"{located(path)} is not a UTF-8 text file ({e}); {_HELP}"
+        ) from None
+    except json.JSONDecodeError as e:
+        raise DatasetFormatError(
+            f"{located(path, e.lineno)}: not valid JSON ({e.msg}, column {e.colno}); {_HELP}"
+        ) from None
+    if not isinstance(data, dict):
+        raise DatasetFormatError(f"{located(path)}: top level is not an object; {_HELP}")
+    entries: dict[int, list[dict[str, Any]]] = {}
+    for key, listed in data.items():
+        if not str(key).isdigit() or not isinstance(listed, list):
+            raise DatasetFormatError(
+                f"{located(path)}: image {key!r} must be a decimal image id mapping to a list; "
+                f"{_HELP}"
+            )
+        entries[int(key)] = listed
+    for key, listed in entries.items():
+        for a in listed:
+            if not isinstance(a, dict) or not isinstance(a.get("obj_id"), int):
+                raise DatasetFormatError(
+                    f"{located(path)}: image {key}: annotation {str(a)[:80]} lacks an integer "
+                    f"obj_id; {_HELP}"
+                )
+    return entries
+
+
+def _followed_object(
+    path: Path, entries: dict[int, list[dict[str, Any]]], object_id: int | None
+) -> int:
+    """The ``obj_id`` to follow: the one asked for, or the only one in the file."""
+    present = {a["obj_id"] for listed in entries.values() for a in listed}
+    if object_id is None:
+        if len(present) != 1:
+            raise ConfigError(
+                f"{located(path)} shows objects {sorted(present)}; choose one with object_id"
+            )
+        return next(iter(present))
+    if object_id not in present:
+        raise ConfigError(
+            f"{located(path)} has no object with obj_id {object_id}; it shows {sorted(present)}"
+        )
+    return object_id
+
+
+def _annotation_pose(
+    path: Path, key: int, annotation: dict[str, Any]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``R`` (3, 3) and ``t`` (3,) [m] of one annotation (``cam_R_m2c`` row-major, ``cam_t_m2c``
+    [mm]), checked and re-orthonormalised."""
+    try:
+        R = np.array(annotation["cam_R_m2c"], dtype=np.float64)
+        t = np.array(annotation["cam_t_m2c"], dtype=np.float64)
+    except (KeyError, TypeError, ValueError):
+        raise DatasetFormatError(
+            f"{located(path)}: image {key}: cam_R_m2c / cam_t_m2c missing or not numbers; {_HELP}"
+        ) from None
+    if R.shape != (9,) or t.shape != (3,):
+        raise DatasetFormatError(
+            f"{located(path)}: image {key}: cam_R_m2c has {R.size} values (need 9) and "
+            f"cam_t_m2c {t.size} (need 3); {_HELP}"
+        )
+    try:
+        R = as_rotation_matrix(R.reshape(3, 3), atol=BOP_ROTATION_TOLERANCE)
+    except ValueError as e:
+        raise DatasetFormatError(
+            f"{located(path)}: image {key}: cam_R_m2c is not a rotation ({e}); it must be "
+            "row-major and orthonormal"
+        ) from None
+    if not np.isfinite(t).all():
+        raise DatasetFormatError(f"{located(path)}: image {key}: cam_t_m2c is not finite")
+    return _orthonormalise(R), t * 1e-3
+
+
 def read_bop_scene_gt(
     path: str | Path, *, object_id: int | None = None, rate_hz: float = 30.0
 ) -> PoseSamples:
@@ -64,49 +147,8 @@ def read_bop_scene_gt(
     path = Path(path)
     if path.is_dir():
         path = path / "scene_gt.json"
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise DatasetFormatError(
-            f"BOP file {located(path)} does not exist; give scene_gt.json or its scene folder"
-        ) from None
-    except UnicodeDecodeError as e:
-        raise DatasetFormatError(
-            f"{located(path)} is not a UTF-8 text file ({e}); {_HELP}"
-        ) from None
-    except json.JSONDecodeError as e:
-        raise DatasetFormatError(
-            f"{located(path, e.lineno)}: not valid JSON ({e.msg}, column {e.colno}); {_HELP}"
-        ) from None
-    if not isinstance(data, dict):
-        raise DatasetFormatError(f"{located(path)}: top level is not an object; {_HELP}")
-    entries: dict[int, list[Any]] = {}
-    for key, listed in data.items():
-        if not str(key).isdigit() or not isinstance(listed, list):
-            raise DatasetFormatError(
-                f"{located(path)}: image {key!r} must be a decimal image id mapping to a list; "
-                f"{_HELP}"
-            )
-        entries[int(key)] = listed
-    present: set[int] = set()
-    for key, listed in entries.items():
-        for a in listed:
-            if not isinstance(a, dict) or not isinstance(a.get("obj_id"), int):
-                raise DatasetFormatError(
-                    f"{located(path)}: image {key}: annotation {str(a)[:80]} lacks an integer "
-                    f"obj_id; {_HELP}"
-                )
-            present.add(a["obj_id"])
-    if object_id is None:
-        if len(present) != 1:
-            raise ConfigError(
-                f"{located(path)} shows objects {sorted(present)}; choose one with object_id"
-            )
-        object_id = next(iter(present))
-    elif object_id not in present:
-        raise ConfigError(
-            f"{located(path)} has no object with obj_id {object_id}; it shows {sorted(present)}"
-        )
+    entries = _scene_gt_entries(path)
+    object_id = _followed_object(path, entries, object_id)
     image_ids, rotations, translations = [], [], []
     for key in sorted(entries):
         mine = [a for a in entries[key] if a["obj_id"] == object_id]
@@ -117,32 +159,10 @@ def read_bop_scene_gt(
                 f"{located(path)}: image {key} has {len(mine)} instances of obj_id {object_id}; "
                 "a trajectory follows exactly one instance"
             )
-        a = mine[0]
-        try:
-            R = np.array(a["cam_R_m2c"], dtype=np.float64)
-            t = np.array(a["cam_t_m2c"], dtype=np.float64)
-        except (KeyError, TypeError, ValueError):
-            raise DatasetFormatError(
-                f"{located(path)}: image {key}: cam_R_m2c / cam_t_m2c missing or not numbers; "
-                f"{_HELP}"
-            ) from None
-        if R.shape != (9,) or t.shape != (3,):
-            raise DatasetFormatError(
-                f"{located(path)}: image {key}: cam_R_m2c has {R.size} values (need 9) and "
-                f"cam_t_m2c {t.size} (need 3); {_HELP}"
-            )
-        try:
-            R = as_rotation_matrix(R.reshape(3, 3), atol=BOP_ROTATION_TOLERANCE)
-        except ValueError as e:
-            raise DatasetFormatError(
-                f"{located(path)}: image {key}: cam_R_m2c is not a rotation ({e}); it must be "
-                "row-major and orthonormal"
-            ) from None
-        if not np.isfinite(t).all():
-            raise DatasetFormatError(f"{located(path)}: image {key}: cam_t_m2c is not finite")
+        R, t = _annotation_pose(path, key, mine[0])
         image_ids.append(key)
-        rotations.append(_orthonormalise(R))
-        translations.append(t * 1e-3)
+        rotations.append(R)
+        translations.append(t)
     if len(image_ids) < MIN_SPLINE_SAMPLES:
         raise DatasetFormatError(
             f"{located(path)}: obj_id {object_id} appears in {len(image_ids)} images; a "

@@ -265,6 +265,54 @@ def _bridged_intervals(
     return tuple(out)
 
 
+def _cleaned_samples(
+    config: CapturedMotionConfig, samples: PoseSamples
+) -> tuple[PoseSamples, float]:
+    """Resampling (when filtering needs uniform samples), drift removal, low-pass, the time
+    window and the speed scale, in that order; also the window's start shift [s]."""
+    if (config.lowpass_hz or config.remove_drift_window_s) and not is_uniform(samples):
+        samples = resample_uniform(samples)
+    if config.remove_drift_window_s:
+        samples = remove_position_drift(samples, config.remove_drift_window_s)
+    if config.lowpass_hz:
+        samples = lowpass_poses(samples, config.lowpass_hz)
+    shift = 0.0
+    if config.window_s is not None:
+        start, end = config.window_s
+        kept = samples.t_s[samples.t_s >= start - 1e-9]
+        shift = float(kept[0]) if kept.size else 0.0
+        samples = window_samples(samples, start, end)
+    return scale_speed(samples, config.speed_scale), shift
+
+
+def _camera_placement(
+    config: CapturedMotionConfig,
+    samples: PoseSamples,
+    intrinsics: CameraIntrinsics,
+    object_radius_m: float,
+) -> tuple[str, NDArray[np.float64], float]:
+    """The placement mode used (``fit`` or ``none``), ``T_cam_world`` (4, 4) and the fraction of
+    object centres in view."""
+    placement = config.placement
+    region = ViewRegion.from_config(
+        intrinsics, placement.working_distance_m, placement.in_view_margin, object_radius_m
+    )
+    p_obj = (samples.T_ref_obj @ config.grasp.T_hand_obj)[:, :3, 3]
+    mode = placement.mode
+    if mode == "auto":
+        mode = "none" if samples.camera_frame else "fit"
+    if mode == "fit":
+        up = samples.up_ref if placement.up_axis == "auto" else up_vector(placement.up_axis)
+        R = (
+            np.eye(3)
+            if up is None
+            else camera_rotation_from_up(p_obj, up, np.radians(placement.camera_yaw_deg))
+        )
+        T_cam_world, fraction = fit_camera_anchor(p_obj, region, R_cam_world=R)
+        return mode, T_cam_world, fraction
+    return mode, np.eye(4), float(region.contains(p_obj).mean())
+
+
 def build_captured_trajectory(
     config: CapturedMotionConfig,
     intrinsics: CameraIntrinsics,
@@ -296,44 +344,15 @@ def build_captured_trajectory(
         sample_rate_hz=config.sample_rate_hz,
     )
     gaps = find_gaps(samples.t_s)
-    if (config.lowpass_hz or config.remove_drift_window_s) and not is_uniform(samples):
-        samples = resample_uniform(samples)
-    if config.remove_drift_window_s:
-        samples = remove_position_drift(samples, config.remove_drift_window_s)
-    if config.lowpass_hz:
-        samples = lowpass_poses(samples, config.lowpass_hz)
-    shift = 0.0
-    if config.window_s is not None:
-        start, end = config.window_s
-        kept = samples.t_s[samples.t_s >= start - 1e-9]
-        shift = float(kept[0]) if kept.size else 0.0
-        samples = window_samples(samples, start, end)
-    samples = scale_speed(samples, config.speed_scale)
+    samples, shift = _cleaned_samples(config, samples)
     spline = SplinePoseTrajectory(samples.t_s, samples.T_ref_obj)
     step = float(np.median(np.diff(samples.t_s))) * config.speed_scale
     margin = max(1.0 / config.lowpass_hz if config.lowpass_hz else 0.0, step)
     bridged = _bridged_intervals(gaps, margin, shift, config.speed_scale, spline.end_s)
 
     placement = config.placement
-    region = ViewRegion.from_config(
-        intrinsics, placement.working_distance_m, placement.in_view_margin, object_radius_m
-    )
     T_hand_obj = config.grasp.T_hand_obj
-    p_obj = (samples.T_ref_obj @ T_hand_obj)[:, :3, 3]
-    mode = placement.mode
-    if mode == "auto":
-        mode = "none" if samples.camera_frame else "fit"
-    if mode == "fit":
-        up = samples.up_ref if placement.up_axis == "auto" else up_vector(placement.up_axis)
-        R = (
-            np.eye(3)
-            if up is None
-            else camera_rotation_from_up(p_obj, up, np.radians(placement.camera_yaw_deg))
-        )
-        T_cam_world, fraction = fit_camera_anchor(p_obj, region, R_cam_world=R)
-    else:
-        T_cam_world = np.eye(4)
-        fraction = float(region.contains(p_obj).mean())
+    mode, T_cam_world, fraction = _camera_placement(config, samples, intrinsics, object_radius_m)
     _log.info(
         "%s: %d samples over %.2f s placed with %.0f %% of the object centres in view",
         samples.source,

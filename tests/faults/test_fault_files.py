@@ -148,7 +148,7 @@ def test_unknown_preset_and_missing_file():
 
 
 def test_presets_live_in_scenarios_faults():
-    # package data in roft_sim/scenarios/faults, also reachable as scenarios/faults in a checkout
+    # scenarios/faults in the repository, installed as the package data roft_sim.scenarios
     assert fault_presets_dir() == scenarios_dir() / "faults"
     repo_view = Path(__file__).resolve().parents[2] / "scenarios" / "faults"
     assert repo_view.resolve() == fault_presets_dir()
