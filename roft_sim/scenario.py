@@ -210,9 +210,9 @@ def load_scenario(path: str | Path) -> Scenario:
 
     Relative paths in it (``[object] mesh``, ``[trajectory] path``, ``[camera.motion] path``) are
     resolved here, against the file's folder, and stored absolute. A ``kind = "hand-motion"``
-    trajectory is resolved here too, into the motion it stands for (the captured file when present, else the fitted
-    continuous profile; logged), so that the scenario, and the metadata of what it generates,
-    say which motion was used.
+    trajectory is resolved here too, into the motion it stands for (the captured file when
+    present, else the fitted continuous profile; logged), so that the scenario, and the metadata
+    of what it generates, say which motion was used.
 
     Raises:
         ConfigError: missing file, invalid TOML, unknown key, missing key or bad value; the
