@@ -245,8 +245,8 @@ def _velocity_errors(
     """Per scored frame ``index`` (F = index.size), scored with the estimate of frame ``from_k``
     (the held one under ``invalid="hold"``, else the same frame), the linear (F, 3) [cm/s] and
     angular (F, 3) [deg/s] velocity errors, estimate minus ground truth, camera frame; NaN rows
-    where a frame is not scored or either side is missing. A spatial twist is scored at the ground-truth origin
-    ``t_gt`` (rows of ``Tg``, the ground truth of the kept frames)."""
+    where a frame is not scored or either side is missing. A spatial twist is scored at the
+    ground-truth origin ``t_gt`` (rows of ``Tg``, the ground truth of the kept frames)."""
     f = index.size
     v_err = np.full((f, 3), np.nan)
     w_err = np.full((f, 3), np.nan)
