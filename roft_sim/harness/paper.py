@@ -46,6 +46,8 @@ from roft_sim.trackers import discover_trackers, get_tracker_spec, load_tracker_
 __all__ = [
     "PaperRow",
     "PAPER_ROWS",
+    "REFERENCE_ROWS",
+    "attribution_table",
     "PAPER_FAULTS",
     "paper_rows",
     "plan_paper",
@@ -79,7 +81,12 @@ class PaperRow:
     flow: bool = True
     """Whether the tracker gets optical flow."""
     tables: tuple[str, ...] = ("IV",)
-    """The tables the row appears in."""
+    """The tables the row appears in (``attribution``: the deviation attribution table)."""
+    paper_label: str | None = None
+    """The paper's row to compare with when it is not ``label`` (the reference-config rows)."""
+    deviations: int | None = None
+    """Apply the first n of :data:`roft_sim.trackers.roft.DEVIATIONS` to the tracker's default
+    configuration (the ``roft-reference`` attribution rows); None: none."""
 
 
 PAPER_ROWS: tuple[PaperRow, ...] = (
@@ -139,19 +146,48 @@ PAPER_ROWS: tuple[PaperRow, ...] = (
 )
 """The rows of Tables I, II and IV (in Table IV's order)."""
 
-REFERENCE_TRACKER = "roft-reference"
-"""Registry name of the reference-configuration ROFT (branch roft-core); when registered the
-paper run adds :data:`REFERENCE_ROW` and shows it beside our default in the side-by-side table."""
 
-REFERENCE_ROW = PaperRow(
-    key="roft_reference",
-    label="ROFT (reference config)",
-    tracker=REFERENCE_TRACKER,
-    tables=("I", "II"),
-)
-"""ROFT with the C++ reference's configuration, when :data:`REFERENCE_TRACKER` is registered."""
+def _reference_rows() -> tuple[PaperRow, ...]:
+    """``roft_reference`` and its Table IV ablation rows (tracker ``roft-reference``), then the
+    attribution rows: the reference plus the first n deviations, for n = 1 .. N-1 (n = 0 is
+    ``roft_reference``, n = N the default, ``roft``)."""
+    from roft_sim.trackers.roft import DEVIATIONS
 
-_PAPER_TRACKERS = {"roft", "detector-hold", "detector-ideal", REFERENCE_TRACKER}
+    rows = []
+    for r in PAPER_ROWS:
+        if r.tracker != "roft":
+            continue
+        key = r.key.replace("roft", "roft_reference", 1)
+        tables = ("I", "IV") if r.key == "roft" else ("IV",)
+        label = r.label.replace("ROFT", "ROFT (reference config)", 1)
+        rows.append(
+            dataclasses.replace(
+                r,
+                key=key,
+                label=label,
+                tracker="roft-reference",
+                tables=tables,
+                paper_label=r.label,
+            )
+        )
+    for n in range(1, len(DEVIATIONS)):
+        rows.append(
+            PaperRow(
+                key=f"attr_{n:02d}_{DEVIATIONS[n - 1].name}",
+                label=f"+ {DEVIATIONS[n - 1].name}",
+                tracker="roft-reference",
+                ablation="full",
+                deviations=n,
+                tables=("attribution",),
+            )
+        )
+    return tuple(rows)
+
+
+REFERENCE_ROWS: tuple[PaperRow, ...] = _reference_rows()
+"""The reference-configuration rows and the attribution rows (see :func:`_reference_rows`)."""
+
+_PAPER_TRACKERS = {"roft", "roft-reference", "detector-hold", "detector-ideal"}
 
 
 def paper_rows(keys: Sequence[str] | None = None, *, plugins: bool = True) -> list[PaperRow]:
@@ -161,10 +197,7 @@ def paper_rows(keys: Sequence[str] | None = None, *, plugins: bool = True) -> li
     Raises:
         ConfigError: an unknown row key (the message lists them).
     """
-    rows = list(PAPER_ROWS)
-    if REFERENCE_TRACKER in discover_trackers():
-        after_roft = next(i for i, r in enumerate(rows) if r.key == "roft") + 1
-        rows.insert(after_roft, REFERENCE_ROW)
+    rows = list(PAPER_ROWS) + list(REFERENCE_ROWS)
     if plugins:
         for name in sorted(discover_trackers()):
             if name not in _PAPER_TRACKERS:
@@ -188,11 +221,14 @@ def paper_rows(keys: Sequence[str] | None = None, *, plugins: bool = True) -> li
 
 def _tracker_config(row: PaperRow) -> Any:
     spec = get_tracker_spec(row.tracker)
+    config = load_tracker_config(spec, None)
     if row.ablation is None:
-        return load_tracker_config(spec, None)
-    from roft_sim.trackers.roft import ablation_config
+        return config
+    from roft_sim.trackers.roft import ablation_config, apply_deviations
 
-    return ablation_config(row.ablation)
+    if row.deviations is not None:
+        config = apply_deviations(config, row.deviations)
+    return ablation_config(row.ablation, config)
 
 
 def plan_paper(
@@ -446,7 +482,7 @@ def _table4(
         if "IV" not in r.tables:
             continue
         sim = results.get(r.key, {}).get(ALL, {})
-        ref = paper.table4.get(r.label, {})
+        ref = paper.table4.get(r.paper_label or r.label, {})
         table_rows.append(
             {
                 "variant": r.label,
@@ -652,6 +688,50 @@ def table4_order(results: dict[str, RowMetrics], paper: PaperTables) -> list[Row
     return out
 
 
+_ATTRIBUTION_METRICS = ("add_auc_pct", "rmse_t_cm", "rmse_a_deg", "rmse_v_cmps", "rmse_w_dps")
+
+
+def attribution_table(
+    results: dict[str, RowMetrics],
+) -> tuple[list[Column], list[dict[str, Any]]]:
+    """Reference (``roft_reference``), each deviation added in turn (the ``attr_*`` rows), the
+    default (``roft``), on ALL, with each metric's change from the row above. Rows not run are
+    left out; no table when neither end was run."""
+    from roft_sim.trackers.roft import DEVIATIONS
+
+    chain: list[tuple[str, str, str]] = [("roft_reference", "reference", "")]
+    for n in range(1, len(DEVIATIONS)):
+        d = DEVIATIONS[n - 1]
+        chain.append((f"attr_{n:02d}_{d.name}", f"+ {d.name}", d.description))
+    last = DEVIATIONS[-1]
+    chain.append(("roft", f"+ {last.name} = default", last.description))
+    columns = [Column("step", "configuration", align="left")]
+    for metric, title in zip(
+        _ATTRIBUTION_METRICS,
+        ("ADD-AUC %", "e_t cm", "e_a deg", "e_v cm/s", "e_w deg/s"),
+        strict=True,
+    ):
+        columns += [Column(metric, title, ".2f"), Column(f"d:{metric}", "change", "+.2f")]
+    columns.append(Column("what", "deviation", align="left"))
+    table_rows: list[dict[str, Any]] = []
+    previous: dict[str, float | None] | None = None
+    if "roft_reference" not in results and "roft" not in results:
+        return columns, []
+    for key, name, what in chain:
+        sim = results.get(key, {}).get(ALL)
+        if sim is None:
+            continue
+        row: dict[str, Any] = {"step": name, "what": what}
+        for metric in _ATTRIBUTION_METRICS:
+            value = sim.get(metric)
+            row[metric] = value
+            before = previous.get(metric) if previous is not None else None
+            row[f"d:{metric}"] = None if value is None or before is None else value - before
+        table_rows.append(row)
+        previous = sim
+    return columns, table_rows
+
+
 @dataclass(frozen=True, slots=True, kw_only=True)
 class PaperResult:
     """What :func:`run_paper` produced."""
@@ -718,6 +798,15 @@ def write_paper_tables(
             f"{', '.join(order.paper_order)}; sim {', '.join(order.sim_order)}"
         )
     md.append("")
+    cols, trs = attribution_table(results)
+    if trs:
+        md += [
+            "## Attribution: the reference configuration, each deviation added, the default (ALL)",
+            "",
+            markdown_table(cols, trs),
+        ]
+        atomic_write_text(out / "attribution.csv", csv_table(cols, trs))
+        tex.append(latex_table(cols, trs, caption="Deviations from the reference, one at a time"))
     md += ["## The paper's findings, checked", ""]
     for f in findings:
         verdict = {True: "holds", False: "DOES NOT HOLD", None: "not checked"}[f.holds]

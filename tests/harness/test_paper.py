@@ -9,7 +9,14 @@ from harness_cases import write_box_dataset
 
 from roft_sim.cli import main
 from roft_sim.errors import ConfigError
-from roft_sim.harness.paper import PAPER_ROWS, check_findings, paper_rows, plan_paper
+from roft_sim.harness.paper import (
+    PAPER_ROWS,
+    REFERENCE_ROWS,
+    attribution_table,
+    check_findings,
+    paper_rows,
+    plan_paper,
+)
 from roft_sim.report.paper_reference import ALL, paper_tables
 from roft_sim.trackers.roft import RoftConfig
 
@@ -145,7 +152,8 @@ def test_full_paper_run_at_640x480_with_short_sequences(tmp_path, capsys):
         assert 0 < entries[ALL]["frames"] <= 6 * 24, key
         assert set(entries) == {*paper_tables().objects, ALL}
     table4 = (out / "table4.csv").read_text().splitlines()
-    assert len(table4) == 1 + len(PAPER_ROWS)
+    assert len(table4) == 1 + len([r for r in paper_rows() if "IV" in r.tables])
+    assert (out / "attribution.csv").exists()
 
 
 def test_paper_cli_checks_its_arguments_before_touching_the_output(tmp_path, capsys):
@@ -165,3 +173,47 @@ def test_paper_cli_checks_its_arguments_before_touching_the_output(tmp_path, cap
         assert main([*base, *bad]) == 2, bad
         assert message in capsys.readouterr().err
         assert (out / "keep.txt").exists(), bad
+
+
+def test_reference_rows_mirror_the_roft_rows_and_the_attribution_chain_ends_at_the_default():
+    from roft_sim.harness.paper import _tracker_config
+    from roft_sim.trackers.roft import DEVIATIONS, ablation_config, reference_config
+
+    ref_rows = [r for r in REFERENCE_ROWS if r.deviations is None]
+    assert [r.paper_label for r in ref_rows] == [r.label for r in PAPER_ROWS if r.tracker == "roft"]
+    assert {r.tracker for r in REFERENCE_ROWS} == {"roft-reference"}
+    main_row = next(r for r in REFERENCE_ROWS if r.key == "roft_reference")
+    assert main_row.tables == ("I", "IV")
+    no_pose = next(r for r in REFERENCE_ROWS if r.key == "roft_reference_no_pose")
+    assert RoftConfig(**_fields(_tracker_config(no_pose))) == ablation_config(
+        "no_pose", reference_config()
+    )
+    attr = [r for r in REFERENCE_ROWS if r.deviations is not None]
+    assert [r.deviations for r in attr] == list(range(1, len(DEVIATIONS)))
+    keys = {r.key for r in paper_rows()}
+    assert "plugin:roft-reference" not in keys and "roft_reference" in keys
+
+
+def _fields(config) -> dict:
+    import dataclasses
+
+    return {f.name: getattr(config, f.name) for f in dataclasses.fields(config)}
+
+
+def test_attribution_table_chains_the_changes():
+    from roft_sim.trackers.roft import DEVIATIONS
+
+    def entry(auc: float) -> dict:
+        return {ALL: {"add_auc_pct": auc, "rmse_t_cm": 1.0, "rmse_a_deg": 2.0}}
+
+    results = {"roft_reference": entry(50.0), "roft": entry(80.0)}
+    for n in range(1, len(DEVIATIONS)):
+        results[f"attr_{n:02d}_{DEVIATIONS[n - 1].name}"] = entry(50.0 + n)
+    _, rows = attribution_table(results)
+    assert [r["step"] for r in rows][0] == "reference" and rows[-1]["step"].endswith("default")
+    assert len(rows) == len(DEVIATIONS) + 1
+    assert rows[0]["d:add_auc_pct"] is None
+    assert rows[1]["d:add_auc_pct"] == pytest.approx(1.0)
+    assert rows[-1]["d:add_auc_pct"] == pytest.approx(80.0 - (50.0 + len(DEVIATIONS) - 1))
+    assert sum(r["d:add_auc_pct"] for r in rows[1:]) == pytest.approx(30.0)
+    assert attribution_table({"detector": entry(1.0)})[1] == []

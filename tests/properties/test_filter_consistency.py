@@ -80,7 +80,14 @@ def _velocity_kf_errors(truth_cfg: VelocityKFConfig, filter_cfg: VelocityKFConfi
     return errors, covs
 
 
-EXACT_KF = VelocityKFConfig(weight_flow=False, subsampling_stride=5)
+REFERENCE_NOISE = {
+    "noise_reference_width_px": None,
+    "adapt_flow_noise": False,
+    "adapt_process_noise": False,
+}
+"""The reference's fixed Q and R, as given (the filter's model is then the truth's)."""
+
+EXACT_KF = VelocityKFConfig(weight_flow=False, subsampling_stride=5, **REFERENCE_NOISE)
 
 
 @pytest.mark.parametrize("stride", [5, 35])
@@ -94,11 +101,28 @@ def test_velocity_kf_without_reweighting_is_consistent(stride):
 
 def test_velocity_kf_with_robust_reweighting_is_conservative():
     """The Laplacian reweighting divides R by weights <= 1: NEES low, never high (ANEES 5.2)."""
-    cfg = VelocityKFConfig(subsampling_stride=5)
+    cfg = VelocityKFConfig(subsampling_stride=5, **REFERENCE_NOISE)
     errors, covs = _velocity_kf_errors(cfg, cfg)
     assert check_error_consistency(errors, covs, sided="upper").passed
     two_sided = check_error_consistency(errors, covs)
     assert two_sided.fraction_below > 0.2 and two_sided.fraction_above == 0.0
+
+
+def test_adaptive_velocity_kf_learns_its_noise_and_stays_consistent():
+    """The default adaptive filter told 100 times too little flow noise (R floor 0.01 px^2
+    against the true 1 px^2) and a Q floor of 1 % of the truth's: it estimates both from its
+    innovations and its NEES stays in the two-sided band after a 10-frame burn-in."""
+    truth = EXACT_KF
+    told = VelocityKFConfig(
+        weight_flow=False,
+        subsampling_stride=5,
+        noise_reference_width_px=None,
+        cov_flow=(0.01, 0.01),
+        adapt_process_noise=True,
+    )
+    errors, covs = _velocity_kf_errors(truth, told)
+    result = check_error_consistency(errors[:, 10:], covs[:, 10:])
+    assert result.passed, result.summary()
 
 
 def test_velocity_kf_that_underrates_the_flow_noise_fails():

@@ -93,10 +93,16 @@ def test_prediction_mean_follows_the_constant_velocity_model():
 
 
 def _exact_kf(x, P, steps, cfg, w, dt):
-    """The linear KF on z = (v, p) when w is known exactly: v_o = v - w x p is linear in z."""
+    """The linear KF on z = (v, p) when w is known exactly: v_o = v - w x p is linear in z.
+
+    With ``integrate_interval_velocity`` the position integrates the NEW velocity
+    (p' = p + dt (v + n_v) + n_p), so n_v also enters the position."""
     S = np.diag(cfg.sigma_linear)
     F = np.block([[np.eye(3), np.zeros((3, 3))], [dt * np.eye(3), np.eye(3)]])
     Q = np.block([[S * dt, S * dt**2 / 2], [S * dt**2 / 2, S * dt**3 / 3]])
+    if cfg.integrate_interval_velocity:
+        G = np.block([[np.eye(3), np.zeros((3, 3))], [dt * np.eye(3), np.eye(3)]])
+        Q = G @ Q @ G.T
     H_vo = np.hstack([np.eye(3), -skew(w)])
     H_p = np.hstack([np.zeros((3, 3)), np.eye(3)])
     for kind, y in steps:
@@ -122,11 +128,17 @@ def _exact_kf(x, P, steps, cfg, w, dt):
     return x, P
 
 
-def test_ukf_equals_the_exact_kf_on_its_linear_gaussian_special_case():
+@pytest.mark.parametrize("interval", [True, False])
+def test_ukf_equals_the_exact_kf_on_its_linear_gaussian_special_case(interval):
     """With w known exactly (zero variance, no w process noise) the translational model and the
     spatial-velocity and position measurements are linear in (v, p), and the unscented transform
-    (augmented noise, SVD square root, alpha=1, beta=2, kappa=0) must reproduce the KF."""
-    cfg = PoseUKFConfig(sigma_angular=(0.0,) * 3, sigma_linear=(0.7, 1.0, 1.3))
+    (augmented noise, SVD square root, alpha=1, beta=2, kappa=0) must reproduce the KF, in both
+    prediction orders (``integrate_interval_velocity``; False is the reference's)."""
+    cfg = PoseUKFConfig(
+        sigma_angular=(0.0,) * 3,
+        sigma_linear=(0.7, 1.0, 1.3),
+        integrate_interval_velocity=interval,
+    )
     ukf = PoseUKF(cfg)
     rng = np.random.default_rng(11)
     w = np.array([0.8, -1.5, 0.4])

@@ -35,6 +35,7 @@ from roft_sim.trackers.roft import (
     ablation_config,
 )
 from roft_sim.trackers.roft.config import PoseGateConfig, PoseSyncConfig
+from roft_sim.trackers.roft.mask_sync import PixelSet, metric_erosion_px
 
 TINY = RoftConfig(velocity=VelocityKFConfig(subsampling_stride=5))
 """On 64x48 images the object has ~200 pixels: a smaller stride keeps the flow update alive."""
@@ -447,8 +448,6 @@ def test_well_formed_after_every_step_under_random_fault_schedules(tiny_seq, dat
 
 def test_velocity_measurement_uses_the_eroded_mask(small_seq):
     seq = small_seq
-    assert VelocityKFConfig().erosion_px(640) == 3 and VelocityKFConfig().erosion_px(64) == 0
-    assert VelocityKFConfig(mask_erosion_px=0).erosion_px(1280) == 0
     masks = [Delivery(k, k, 1000 + k) for k in range(len(seq))]
     obs = build_observations(seq, masks=masks)
     used = {}
@@ -533,3 +532,25 @@ def test_dropped_camera_frames_predict_without_measurement(tiny_seq):
     assert est[8].valid and est[8].diagnostics["flow_pixels"] == 0
     assert est[10].diagnostics["flow_pixels"] > 0  # the 2-frame flow 7 -> 10 is used
     assert isinstance(obs[8], Observation) and obs[8].camera_dropped
+
+
+def test_metric_erosion_is_a_band_on_the_object_and_never_eats_the_mask():
+    """5 mm at 0.5 m with fx = 500 px is 5 px; a 6x6 px mask keeps more than half of itself
+    (radius 1 would leave 16 of 36 pixels, so the radius drops to 0)."""
+    depth = np.full((200, 200), 0.5)
+    big = np.zeros((200, 200), dtype=bool)
+    big[50:150, 50:150] = True
+    assert metric_erosion_px(PixelSet.from_mask(big), depth, 500.0, 0.005, 0.5) == 5
+    assert metric_erosion_px(PixelSet.from_mask(big), 2 * depth, 500.0, 0.005, 0.5) == 2
+    small = np.zeros((200, 200), dtype=bool)
+    small[10:16, 10:16] = True
+    assert metric_erosion_px(PixelSet.from_mask(small), depth, 500.0, 0.005, 0.5) == 0
+    assert metric_erosion_px(PixelSet.from_mask(small), depth, 500.0, 0.005, 0.9) == 2
+
+
+def test_stride_and_flow_noise_scale_with_the_resolution():
+    cfg = VelocityKFConfig()
+    assert cfg.stride(1280) == 35 and cfg.stride(640) == 9 and cfg.stride(320) == 2
+    assert cfg.flow_variance_px2(640) == (0.25, 0.25)
+    ref = VelocityKFConfig(noise_reference_width_px=None)
+    assert ref.stride(320) == 35 and ref.flow_variance_px2(320) == (1.0, 1.0)

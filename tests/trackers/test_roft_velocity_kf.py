@@ -120,7 +120,13 @@ def _random_measurement(rng, n):
 )
 def test_batched_update_equals_the_references_sequential_per_pixel_update(weight_flow, pairs):
     rng = np.random.default_rng(7)
-    cfg = VelocityKFConfig(weight_flow=weight_flow, cov_flow=(1.0, 2.0), reweighting_pairs=pairs)
+    cfg = VelocityKFConfig(
+        weight_flow=weight_flow,
+        cov_flow=(1.0, 2.0),
+        reweighting_pairs=pairs,
+        adapt_flow_noise=False,
+        adapt_process_noise=False,
+    )
     kf = VelocityKF(cfg)
     kf.x = rng.normal(size=6)
     for _ in range(3):
@@ -191,3 +197,39 @@ def test_velocity_kf_alone_recovers_the_gt_spatial_twist(medium_seq):
     rms_v = np.sqrt(np.mean(np.sum(e[:, :3] ** 2, 1)))
     rms_w = np.sqrt(np.mean(np.sum(e[:, 3:] ** 2, 1)))
     assert rms_v < 0.13 and rms_w < 0.25  # < 10 % of the motion's RMS
+
+
+def test_adapted_flow_noise_recovers_the_true_spread():
+    """With Gaussian flow noise of 0.8 px on (du, dv) the robust residual spread gives R of
+    about 0.8^2 (the configured 0.1^2 is only a floor)."""
+    rng = np.random.default_rng(3)
+    cfg = VelocityKFConfig(cov_flow=(0.01, 0.01), weight_flow=False, noise_reference_width_px=None)
+    kf = VelocityKF(cfg)
+    n = 2000
+    u = rng.integers(0, CAM.width_px, n)
+    v = rng.integers(0, CAM.height_px, n)
+    J = flow_jacobian(CAM, u, v, rng.uniform(0.4, 1.5, n), 1 / 30)
+    y = J @ np.r_[0.1, -0.2, 0.05, 1.0, -0.5, 0.3] + rng.normal(0.0, 0.8, (n, 2))
+    assert kf.step(FlowMeasurement(y_px=y, J=J, u_px=u, v_px=v))
+    np.testing.assert_allclose(kf.flow_sigma_px, [0.8, 0.8], rtol=0.08)
+
+
+def test_process_noise_adapts_to_the_motion():
+    """A twist that changes by ~0.3 rad/s per frame raises Q of w far above its floor; a still
+    one lets it fall to the floor."""
+    rng = np.random.default_rng(4)
+    n = 400
+    u = rng.integers(0, CAM.width_px, n)
+    v = rng.integers(0, CAM.height_px, n)
+    J = flow_jacobian(CAM, u, v, rng.uniform(0.4, 1.5, n), 1 / 30)
+    q = {}
+    for name, step_radps in (("moving", 0.3), ("still", 0.0)):
+        kf = VelocityKF(VelocityKFConfig(weight_flow=False, adapt_process_noise=True))
+        twist = np.zeros(6)
+        for _ in range(60):
+            twist[3:6] += rng.normal(0.0, step_radps, 3)
+            y = J @ twist + rng.normal(0.0, 0.3, (n, 2))
+            assert kf.step(FlowMeasurement(y_px=y, J=J, u_px=u, v_px=v))
+        q[name] = kf.q_diag[3:6]
+    assert (q["moving"] > 0.02).all()
+    np.testing.assert_allclose(q["still"], 0.1 * 0.01, rtol=1e-6)

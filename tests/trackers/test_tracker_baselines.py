@@ -135,3 +135,32 @@ def test_every_registered_tracker_runs_through_the_loop(tiny_seq, name):
     est = run_tracker(tracker, build_observations(seq, poses=paper_schedule(len(seq)), masks=masks))
     assert [e.k for e in est] == list(range(len(seq))) and est[-1].valid
     assert transform_distance(est[-1].T_cam_obj, seq.gt.T_cam_obj[-1])[0] < 0.25  # sanity
+
+
+def test_naive_delay_is_its_own_class_and_equals_the_no_replay_ablation(small_seq):
+    """naive-delay is an independent class; on jittered delays with gated outliers it gives the
+    estimates of ROFT's pose-only filter with replay off (the ablation it used to be)."""
+    from roft_sim.trackers.baselines import PoseOnlyUkfConfig
+    from roft_sim.trackers.baselines.naive_delay import NaiveDelayTracker
+    from roft_sim.trackers.baselines.pose_only_ukf import _roft_config
+    from roft_sim.trackers.roft import RoftTracker
+
+    seq = small_seq
+    rng = np.random.default_rng(5)
+    deliveries = []
+    for i, c in enumerate(range(0, len(seq) - 8, 6)):
+        T = seq.gt.T_cam_obj[c].copy()
+        if i % 5 == 3:  # an outlier 30 cm away: the gate rejects it
+            T[:3, 3] += [0.3, 0.0, 0.0]
+        deliveries.append(Delivery(c, c + int(rng.integers(2, 8)), i, T))
+    obs = build_observations(seq, poses=deliveries)
+    naive = _make("naive-delay", seq)
+    assert isinstance(naive, NaiveDelayTracker)
+    ablation = RoftTracker(_roft_config(PoseOnlyUkfConfig(), resync=False), make_context(seq))
+    a_est, b_est = run_tracker(naive, obs), run_tracker(ablation, obs)
+    assert sum(len(e.rejected_pose_ids) for e in a_est) >= 2
+    for a, b in zip(a_est, b_est, strict=True):
+        assert a.valid == b.valid and a.rejected_pose_ids == b.rejected_pose_ids
+        if a.valid:
+            np.testing.assert_allclose(a.T_cam_obj, b.T_cam_obj, atol=1e-12)
+            np.testing.assert_allclose(a.covariance, b.covariance, atol=1e-12)

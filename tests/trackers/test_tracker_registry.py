@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import tomllib
 
@@ -84,3 +85,20 @@ def test_run_tracker_checks_what_the_tracker_returns():
     obs = [Observation(k=0, t_s=0.0, rgb=None, depth_m=None, flow=None)]
     with pytest.raises(PluginError, match=r"Broken.step\(k=0\) returned 'str'"):
         run_tracker(Broken(), obs)
+
+
+def test_reference_config_plus_every_deviation_is_the_default():
+    """The attribution table's chain ends at the default, and the roft-reference tracker's
+    defaults are reference_config()."""
+    from roft_sim.trackers.roft import DEVIATIONS, apply_deviations, reference_config
+
+    assert apply_deviations(reference_config()) == RoftConfig()
+    assert reference_config() != RoftConfig()
+    names = [d.name for d in DEVIATIONS]
+    assert len(set(names)) == len(names)
+    for i, deviation in enumerate(DEVIATIONS):  # each one changes something
+        before = apply_deviations(reference_config(), i)
+        assert deviation.apply(before) != before, deviation.name
+    spec = get_tracker_spec("roft-reference")
+    loaded = load_tracker_config(spec, None)
+    assert dataclasses.asdict(loaded) == dataclasses.asdict(reference_config())

@@ -4,7 +4,7 @@
 |---|---|
 | ``detector-hold`` | the last delivered detector pose, held until the next (paper's "DOPE") |
 | ``detector-ideal`` | the same, with every frame's detection delivered undelayed by the harness |
-| ``naive-delay`` | pose-only UKF that fuses delayed poses as if they were current |
+| ``naive-delay`` | pose-only UKF that fuses delayed poses as if they were current (own class) |
 | ``pose-only-ukf`` | pose-only constant-velocity UKF with correct delay handling (replay) |
 """
 

@@ -2,7 +2,8 @@
 
 A numpy re-implementation of hsp-iit/roft; the method, its parameters and the deliberate
 differences from the reference are documented in docs/roft.md. Registered as the tracker
-``roft`` (entry point ``roft = "roft_sim.trackers.roft:SPEC"``).
+``roft`` (entry point ``roft = "roft_sim.trackers.roft:SPEC"``) and, with the reference's
+settings (:func:`reference_config`), as ``roft-reference`` (``REFERENCE_SPEC``).
 """
 
 from roft_sim.trackers.base import TrackerContext, TrackerSpec
@@ -17,10 +18,23 @@ from roft_sim.trackers.roft.config import (
     VelocityKFConfig,
     ablation_config,
 )
+from roft_sim.trackers.roft.reference import (
+    DEVIATIONS,
+    Deviation,
+    RoftReferenceConfig,
+    apply_deviations,
+    reference_config,
+)
 from roft_sim.trackers.roft.tracker import RoftTracker
 
 __all__ = [
     "ABLATIONS",
+    "DEVIATIONS",
+    "Deviation",
+    "REFERENCE_SPEC",
+    "RoftReferenceConfig",
+    "apply_deviations",
+    "reference_config",
     "MaskSyncConfig",
     "OutlierRejectionConfig",
     "PoseGateConfig",
@@ -47,3 +61,14 @@ SPEC = TrackerSpec(
     needs_depth_renderer=True,
 )
 """The registry entry of ROFT."""
+
+
+REFERENCE_SPEC = TrackerSpec(
+    name="roft-reference",
+    description="ROFT with the C++ reference's settings (reference_config(); the deviations of "
+    "the default are listed in roft_sim.trackers.roft.DEVIATIONS)",
+    config_type=RoftReferenceConfig,
+    factory=_create,
+    needs_depth_renderer=True,
+)
+"""The registry entry of ROFT with the reference configuration."""

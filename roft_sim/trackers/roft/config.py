@@ -54,12 +54,26 @@ class MaskSyncConfig:
     """How a tracked sub-pixel position picks its pixel: ``nearest`` (the pixel whose centre is
     nearest, right for pixel centres at integer coordinates) or ``truncate`` (C truncation, as the
     reference, a bias of half a pixel towards the top-left)."""
-    cleanup: Literal["none", "close", "majority"] = "majority"
-    """Clean-up of the warped mask on 3x3 neighbourhoods after every flow step. ``majority``
-    (a binary median) fills the holes forward splatting leaves where the object grows in the
-    image and removes points scattered by flow noise; ``close`` (morphological closing) only
-    fills holes; ``none`` is the reference: a delayed mask is tracked point by point through
-    all buffered flows and rasterised once."""
+    cleanup: Literal["none", "close", "majority"] = "close"
+    """Clean-up of the warped mask on 3x3 neighbourhoods after every flow step. ``close``
+    (morphological closing) fills the holes forward splatting leaves where the object grows in
+    the image and never removes a pixel; ``majority`` (a binary median, the previous default)
+    also removes points scattered by flow noise, and under noisy flow it erodes the mask a
+    little at every step until it collapses (sigma = 1 px: 27 667 px to 344 px); ``none`` is
+    the reference: a delayed mask is tracked point by point through all buffered flows and
+    rasterised once."""
+    subpixel: bool = True
+    """Keep the tracked points' sub-pixel positions from frame to frame (the mask of each
+    frame is their rasterisation); False re-rasterises the mask at every flow step, which
+    rounds away motion smaller than half a pixel per frame. Needs ``cleanup`` ``none`` or
+    ``close``."""
+
+    def __post_init__(self) -> None:
+        if self.subpixel and self.cleanup == "majority":
+            raise ConfigError(
+                "mask.subpixel = true tracks points and cannot apply the binary median "
+                "(cleanup = 'majority'); use cleanup = 'close' or 'none', or subpixel = false"
+            )
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -79,12 +93,38 @@ class VelocityKFConfig:
     cov_w0: Vec3 = (1e-3, 1e-3, 1e-3)
     """Initial covariance diagonal of w [(rad/s)^2]."""
     cov_flow: tuple[float, float] = (1.0, 1.0)
-    """Flow measurement variance (du, dv) per pixel [px^2]."""
+    """Flow measurement variance (du, dv) per pixel [px^2], for images
+    ``noise_reference_width_px`` wide (the actual width when that is None)."""
+    noise_reference_width_px: float | None = 1280.0
+    """Width [px] at which ``cov_flow`` and ``subsampling_stride`` are given: at width W the
+    variance is scaled by (W / ref)^2 (the same angular noise) and the stride by (W / ref)^2
+    (the same fraction of the object's pixels). None: both are used as given (the reference,
+    tuned on 1280x720)."""
+    adapt_flow_noise: bool = True
+    """Estimate the flow noise from the data: each update uses
+    ``max(cov_flow, s^2)`` with s the robust (1.4826 MAD) spread of the post-fit residuals of the
+    pixels, per component, so the filter's covariance follows the actual flow quality."""
+    independent_pixels_per_cell: bool = True
+    """Count the pixels sampled inside one flow grid cell (e.g. the 4x4 cells of NVOF) as one
+    measurement (their weights are divided by their number): they read the same vector, and
+    counting them as independent makes the covariance too small."""
+    adapt_process_noise: bool = False
+    """Innovation-based process-noise adaptation: Q per frame is the running mean (over
+    ``adaptation_frames``) of ``(x_ls - x)^2 - P - P_ls`` per component (x_ls the
+    measurement-only estimate of the interval: covariance matching), floored by
+    ``sigma_linear`` / ``sigma_angular`` scaled by ``process_noise_floor``. Off by default:
+    measured on the captured and synthetic sequences it did not help (docs/roft.md); the
+    reference's Q (0.1 per frame) already leaves the filter almost memoryless."""
+    adaptation_frames: float = 8.0
+    """Time constant of the running mean of the process-noise adaptation [frames]."""
+    process_noise_floor: float = 0.01
+    """With adaptation, Q never drops below this fraction of sigma_linear / sigma_angular."""
     depth_maximum_m: float = 2.0
     """Pixels with depth outside (0, depth_maximum_m) are not used [m]."""
     subsampling_stride: int = 35
     """Use every n-th pixel of the row-major list of mask pixels (the reference's
-    ``subsampling_radius``; a stride over the list, applied before validity filtering)."""
+    ``subsampling_radius``; a stride over the list, applied before validity filtering), at
+    ``noise_reference_width_px`` (scaled to the actual width, at least 1)."""
     weight_flow: bool = True
     """Robust Laplacian reweighting of each pixel's noise by its innovation norm."""
     reweighting_pairs: Literal["correct", "reference"] = "correct"
@@ -97,8 +137,31 @@ class VelocityKFConfig:
     mask_erosion_px: int | None = None
     """Erode the mask of frame k-1 by this radius [px] before taking its pixels, so that no flow
     vector straddles the object's boundary (dense flow such as DIS smooths across it and the
-    synchronised mask is never exact there). None: ``round(width / 213)`` (3 px at 640, 6 px at
-    1280, 0 below 107 px); 0: the reference (no erosion)."""
+    synchronised mask is never exact there). None: the metric rule (``mask_erosion_m``);
+    0: the reference (no erosion)."""
+    mask_erosion_m: float = 0.005
+    """With ``mask_erosion_px`` None: erode a band this wide on the object [m] (radius =
+    ``mask_erosion_m * fx / median depth of the mask``) ..."""
+    mask_erosion_max_removed: float = 0.5
+    """... reduced until at most this fraction of the mask's pixels is removed, so a small or
+    thin mask is never eaten."""
+    depth_band_m: float | None = 0.15
+    """Use only pixels whose depth is within this distance of the median depth of the sampled
+    mask pixels [m]: background that a propagated mask has picked up (a trail of points left
+    behind at the silhouette, a wall seen through a hole) is dropped before it biases the
+    twist. None: no band (the reference)."""
+    skip_stale_velocity: bool = True
+    """When the filter could not update (too few valid pixels, no flow), give the pose UKF no
+    velocity measurement for that frame; False feeds the previous twist again (the reference)."""
+    twist_covariance_to_ukf: bool = True
+    """Add this filter's covariance to the pose UKF's velocity measurement noise (its
+    ``meas_cov_v`` / ``meas_cov_w`` then act as floors); False: the fixed values only."""
+    midpoint_timing: bool = True
+    """The flow F_k measures the mean twist over (k-1, k], the twist at k - 1/2. True: the
+    twist REPORTED for frame k (``Estimate.spatial_twist``) is the corrected one carried half an
+    interval forward with the rate of change of the last two corrected twists; False: the
+    mean over the interval is reported as the twist at k (the reference). The pose UKF always
+    receives the interval mean (see ``pose.integrate_interval_velocity``)."""
 
     def __post_init__(self) -> None:
         _check_positive("velocity", "sigma_linear", self.sigma_linear, allow_zero=True)
@@ -118,15 +181,54 @@ class VelocityKFConfig:
             raise ConfigError(f"velocity.min_pixels must be >= 1, got {self.min_pixels}")
         if self.mask_erosion_px is not None and not 0 <= self.mask_erosion_px <= 50:
             raise ConfigError(
-                f"velocity.mask_erosion_px must be in [0, 50] px (or absent for the automatic "
-                f"value), got {self.mask_erosion_px}"
+                f"velocity.mask_erosion_px must be in [0, 50] px (or absent for the metric "
+                f"rule), got {self.mask_erosion_px}"
+            )
+        if not (math.isfinite(self.mask_erosion_m) and 0 <= self.mask_erosion_m <= 0.1):
+            raise ConfigError(
+                f"velocity.mask_erosion_m must be in [0, 0.1] m, got {self.mask_erosion_m}"
+            )
+        if self.depth_band_m is not None and not (
+            math.isfinite(self.depth_band_m) and self.depth_band_m > 0
+        ):
+            raise ConfigError(
+                f"velocity.depth_band_m must be > 0 m (or absent), got {self.depth_band_m}"
+            )
+        if not 0 <= self.mask_erosion_max_removed < 1:
+            raise ConfigError(
+                f"velocity.mask_erosion_max_removed must be in [0, 1), got "
+                f"{self.mask_erosion_max_removed}"
+            )
+        if self.noise_reference_width_px is not None and not (
+            math.isfinite(self.noise_reference_width_px) and self.noise_reference_width_px > 0
+        ):
+            raise ConfigError(
+                f"velocity.noise_reference_width_px must be > 0 px (or absent), got "
+                f"{self.noise_reference_width_px}"
+            )
+        if not (math.isfinite(self.adaptation_frames) and self.adaptation_frames >= 1):
+            raise ConfigError(
+                f"velocity.adaptation_frames must be >= 1, got {self.adaptation_frames}"
+            )
+        if not (math.isfinite(self.process_noise_floor) and 0 < self.process_noise_floor <= 1):
+            raise ConfigError(
+                f"velocity.process_noise_floor must be in (0, 1], got {self.process_noise_floor}"
             )
 
-    def erosion_px(self, width_px: int) -> int:
-        """The erosion radius [px] for images ``width_px`` wide."""
-        if self.mask_erosion_px is not None:
-            return self.mask_erosion_px
-        return int(round(width_px / 213.0))
+    def resolution_scale(self, width_px: int) -> float:
+        """(W / noise_reference_width_px)^2: the factor on ``cov_flow`` and the stride."""
+        if self.noise_reference_width_px is None:
+            return 1.0
+        return (width_px / self.noise_reference_width_px) ** 2
+
+    def stride(self, width_px: int) -> int:
+        """The subsampling stride over the mask-pixel list for images ``width_px`` wide."""
+        return max(1, int(round(self.subsampling_stride * self.resolution_scale(width_px))))
+
+    def flow_variance_px2(self, width_px: int) -> tuple[float, float]:
+        """``cov_flow`` [px^2] for images ``width_px`` wide."""
+        s = self.resolution_scale(width_px)
+        return (self.cov_flow[0] * s, self.cov_flow[1] * s)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -154,6 +256,17 @@ class PoseUKFConfig:
     """Measurement variance of a pose's position [m^2]."""
     meas_cov_q: Vec3 = (1e-4, 1e-4, 1e-4)
     """Measurement variance of a pose's rotation (tangent) [rad^2]."""
+    integrate_interval_velocity: bool = True
+    """Prediction order. True: the velocities are propagated first and the pose is integrated
+    with the NEW velocities (``p' = p + v' dt``, ``q' = exp(w' dt / 2) q``), so the velocity
+    state at k is the mean over (k-1, k], which is what the flow F_k measures, and a velocity
+    measurement moves the pose of the same frame. False: the reference (the pose is integrated
+    with the velocities of k-1; the orientation lags the flow by a frame)."""
+    pose_updates_velocity: bool = True
+    """Let a pose correction change the velocity states through their cross-covariance with
+    the pose (the reference). False: a Schmidt ("consider") update: the gain rows of v and w
+    are zeroed for pose measurements, so the velocities come from the flow alone and a replay
+    with a pose far from the integrated track does not kick them."""
     alpha: float = 1.0
     """Unscented transform spread."""
     beta: float = 2.0

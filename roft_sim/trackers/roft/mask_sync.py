@@ -34,7 +34,17 @@ from numpy.typing import NDArray
 from roft_sim.records import FlowField, MaskDetection
 from roft_sim.trackers.roft.config import MaskSyncConfig
 
-__all__ = ["PixelSet", "warp_pixels", "erode_pixels", "lookup_flow", "MaskSynchroniser", "MaskStep"]
+__all__ = [
+    "PixelSet",
+    "TrackedPoints",
+    "track_points",
+    "warp_pixels",
+    "erode_pixels",
+    "metric_erosion_px",
+    "lookup_flow",
+    "MaskSynchroniser",
+    "MaskStep",
+]
 
 I64 = NDArray[np.int64]
 
@@ -297,6 +307,102 @@ def warp_pixels(
 
 
 @dataclass(frozen=True, slots=True)
+class TrackedPoints:
+    """A mask as sub-pixel points tracked through the flow, with its rasterised pixel set.
+
+    Between flow steps the points keep their float positions (no re-rasterisation, so motion
+    of a fraction of a pixel per frame accumulates instead of being rounded away); the pixel
+    set is their nearest pixels, closed on 3x3 neighbourhoods when asked, and the pixels the
+    closing adds become new points at their centres (so a mask that grows in the image keeps
+    its density)."""
+
+    u_px: NDArray[np.float64]
+    """(N,) columns of the points [px] (pixel centres at integer coordinates)."""
+    v_px: NDArray[np.float64]
+    """(N,) rows of the points [px]."""
+    pixels: PixelSet
+    """The rasterised (and closed) mask."""
+
+    @classmethod
+    def from_pixels(cls, pixels: PixelSet) -> TrackedPoints:
+        """One point at the centre of every pixel."""
+        return cls(pixels.u.astype(np.float64), pixels.v.astype(np.float64), pixels)
+
+
+def track_points(points: TrackedPoints, flow: FlowField, *, cleanup: str) -> TrackedPoints:
+    """Moves sub-pixel points by one flow (looked up at the pixel each point lies in) and
+    rasterises them to the nearest pixels, with ``close`` or no clean-up.
+
+    Points that leave the image or meet an invalid flow vector are dropped; several points in
+    one pixel are reduced to the first. ``cleanup = "close"`` fills the one-pixel holes that
+    splatting leaves where the object grows; unlike the binary median it never removes a
+    pixel, so flow noise that scatters the points cannot shrink the mask to nothing.
+
+    Args:
+        points: the mask in the frame ``flow.from_k``.
+        flow: one flow field.
+        cleanup: ``none`` or ``close``.
+    """
+    if cleanup not in ("none", "close"):
+        raise ValueError(f"track_points supports cleanup 'none' or 'close', got {cleanup!r}")
+    shape = points.pixels.shape
+    h, w = shape
+    u, v = points.u_px, points.v_px
+    ui = np.floor(u + 0.5).astype(np.int64)
+    vi = np.floor(v + 0.5).astype(np.int64)
+    f, ok = lookup_flow(flow, ui, vi)
+    u = u[ok] + f.real[ok]
+    v = v[ok] + f.imag[ok]
+    inside = (u >= -0.5) & (u < w - 0.5) & (v >= -0.5) & (v < h - 0.5)
+    u, v = u[inside], v[inside]
+    ui = np.floor(u + 0.5).astype(np.int64)
+    vi = np.floor(v + 0.5).astype(np.int64)
+    lin, first = np.unique(vi * w + ui, return_index=True)
+    u, v = u[first], v[first]
+    if cleanup == "none" or lin.size == 0:
+        return TrackedPoints(u, v, PixelSet.from_index(lin, shape))
+    closed = _splat(ui[first], vi[first], shape, "close")
+    added = closed.index[~np.isin(closed.index, lin, assume_unique=True)]
+    if added.size:
+        av = added // w
+        u = np.concatenate([u, (added - av * w).astype(np.float64)])
+        v = np.concatenate([v, av.astype(np.float64)])
+    return TrackedPoints(u, v, closed)
+
+
+def metric_erosion_px(
+    pixels: PixelSet,
+    depth_m: NDArray[np.floating],
+    focal_px: float,
+    erosion_m: float,
+    max_removed_fraction: float,
+) -> int:
+    """Erosion radius [px] that removes a band ``erosion_m`` wide at the object's median depth,
+    reduced until at most ``max_removed_fraction`` of the mask is removed.
+
+    Args:
+        pixels: the mask.
+        depth_m: (H, W) z-depth [m]; the median over the mask's valid (> 0) pixels is used.
+        focal_px: focal length [px].
+        erosion_m: band width on the object [m].
+        max_removed_fraction: in [0, 1).
+    """
+    if len(pixels) == 0 or erosion_m <= 0:
+        return 0
+    z = np.take(depth_m.reshape(-1), pixels.index)
+    z = z[np.isfinite(z) & (z > 0)]
+    if z.size == 0:
+        return 0
+    radius = int(round(erosion_m * focal_px / float(np.median(z))))
+    while radius > 0:
+        kept = len(erode_pixels(pixels, radius))
+        if kept >= (1.0 - max_removed_fraction) * len(pixels):
+            break
+        radius -= 1
+    return radius
+
+
+@dataclass(frozen=True, slots=True)
 class MaskStep:
     """What the synchroniser did at one frame."""
 
@@ -328,6 +434,7 @@ class MaskSynchroniser:
     def reset(self) -> None:
         self._flows: dict[int, FlowField] = {}
         self._pixels: PixelSet | None = None
+        self._points: TrackedPoints | None = None
         self._capture_k: int | None = None
 
     def step(self, k: int, flow: FlowField | None, masks: Sequence[MaskDetection]) -> MaskStep:
@@ -360,16 +467,26 @@ class MaskSynchroniser:
                     if best.capture_k < j <= k and self._flows[j].from_k >= best.capture_k
                 ]
                 counts["warp_flows"] = len(chain)
-                pixels = warp_pixels(pixels, chain, rounding=cfg.rounding, cleanup=cfg.cleanup)
+                if cfg.subpixel:
+                    points = TrackedPoints.from_pixels(pixels)
+                    for flow_j in chain:
+                        points = track_points(points, flow_j, cleanup=cfg.cleanup)
+                    self._points, pixels = points, points.pixels
+                else:
+                    pixels = warp_pixels(pixels, chain, rounding=cfg.rounding, cleanup=cfg.cleanup)
             self._pixels, self._capture_k = pixels, best.capture_k
         elif cfg.flow_aided and self._pixels is not None and k in self._flows:
             counts["warp_flows"] = 1
-            self._pixels = warp_pixels(
-                self._pixels,
-                [self._flows[k]],
-                rounding=cfg.rounding,
-                cleanup=cfg.cleanup,
-            )
+            if cfg.subpixel and self._points is not None:
+                self._points = track_points(self._points, self._flows[k], cleanup=cfg.cleanup)
+                self._pixels = self._points.pixels
+            else:
+                self._pixels = warp_pixels(
+                    self._pixels,
+                    [self._flows[k]],
+                    rounding=cfg.rounding,
+                    cleanup=cfg.cleanup,
+                )
         for j in [j for j in self._flows if j <= k - self._horizon]:
             del self._flows[j]
         return MaskStep(self._pixels, self._capture_k, counts)

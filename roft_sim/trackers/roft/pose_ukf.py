@@ -232,7 +232,10 @@ class PoseUKF:
         x = belief.x + dx[:, :9]
         q = _qmul(_qexp(dx[:, 9:12]), belief.q)
         v, w, p = x[:, 0:3], x[:, 3:6], x[:, 6:9]
-        x_new = np.concatenate([v + dn[:, 0:3], w + dn[:, 3:6], p + v * dt_s + dn[:, 6:9]], axis=1)
+        v_new, w_new = v + dn[:, 0:3], w + dn[:, 3:6]
+        if self._config.integrate_interval_velocity:
+            v, w = v_new, w_new
+        x_new = np.concatenate([v_new, w_new, p + v * dt_s + dn[:, 6:9]], axis=1)
         q_new = _qmul(_qexp(w * dt_s), q)
         x_mean = wm @ x_new
         q_mean = markley_mean(q_new, wm)
@@ -245,6 +248,7 @@ class PoseUKF:
         belief: PoseBelief,
         *,
         twist: F64 | None = None,
+        twist_cov: F64 | None = None,
         p_meas_m: F64 | None = None,
         q_meas_wxyz: F64 | None = None,
     ) -> PoseBelief:
@@ -253,6 +257,8 @@ class PoseUKF:
         Args:
             belief: the predicted belief.
             twist: (6,) measured ``(v_o [m/s], w [rad/s])``, modelled as ``(v - w x p, w)``.
+            twist_cov: (6, 6) covariance added to the configured twist noise
+                ``diag(meas_cov_v, meas_cov_w)`` (e.g. the velocity KF's own) [SI^2].
             p_meas_m: (3,) measured position [m]; give it together with ``q_meas_wxyz``.
             q_meas_wxyz: (4,) measured orientation.
 
@@ -267,7 +273,12 @@ class PoseUKF:
         parts = (["v_o", "w"] if twist is not None else []) + (["p", "q"] if has_pose else [])
         n_noise = 3 * len(parts)
         c, wm, wc = self._ut(12 + n_noise)
-        d = _sigma_offsets([psd_sqrt(belief.P)] + [self._sqrt_R[k] for k in parts], c)
+        noise_sqrts = [self._sqrt_R[k] for k in parts]
+        if twist is not None and twist_cov is not None:
+            R_twist = np.diag(np.concatenate([self._R["v_o"], self._R["w"]]))
+            R_twist = R_twist + np.asarray(twist_cov, dtype=np.float64)
+            noise_sqrts = [psd_sqrt(0.5 * (R_twist + R_twist.T))] + noise_sqrts[2:]
+        d = _sigma_offsets([psd_sqrt(belief.P)] + noise_sqrts, c)
         dx, dn = d[:, :12], d[:, 12:]
         x = belief.x + dx[:, :9]
         v, w, p = x[:, 0:3], x[:, 3:6], x[:, 6:9]
@@ -297,9 +308,17 @@ class PoseUKF:
         P_yy = weighted.T @ y_off
         P_xy = dx.T @ weighted
         K = np.linalg.solve(P_yy, P_xy.T).T  # P_yy symmetric
+        if has_pose and not self._config.pose_updates_velocity:
+            # Schmidt update: the pose rows of the measurement do not move v and w
+            K[0:6, j:] = 0.0
         delta = K @ nu
         q_new = _qmul(_qexp(delta[None, 9:12])[0], belief.q)
-        P = belief.P - K @ P_yy @ K.T
+        if has_pose and not self._config.pose_updates_velocity:
+            # the gain is not the optimal one: the general (Joseph-like) form keeps P right
+            KPxy = K @ P_xy.T
+            P = belief.P - KPxy - KPxy.T + K @ P_yy @ K.T
+        else:
+            P = belief.P - K @ P_yy @ K.T
         return PoseBelief(
             x=belief.x + delta[:9], q=q_new / np.linalg.norm(q_new), P=0.5 * (P + P.T)
         )

@@ -42,7 +42,12 @@ from roft_sim.records import (
 )
 from roft_sim.trackers.base import TrackerContext
 from roft_sim.trackers.roft.config import RoftConfig
-from roft_sim.trackers.roft.mask_sync import MaskSynchroniser, PixelSet, erode_pixels
+from roft_sim.trackers.roft.mask_sync import (
+    MaskSynchroniser,
+    PixelSet,
+    erode_pixels,
+    metric_erosion_px,
+)
 from roft_sim.trackers.roft.outlier_rejection import (
     DepthOutlierTest,
     DepthSamples,
@@ -64,6 +69,8 @@ class _Frame:
     """Time since the previous frame [s] (the UKF prediction step)."""
     twist: F64 | None
     """(6,) velocity measurement (v_o, w) for the UKF, or None."""
+    twist_cov: F64 | None
+    """(6, 6) the velocity KF's covariance added to the UKF's twist noise, or None."""
     samples: DepthSamples | None
     """Measured depth samples for the outlier test of poses captured at this frame."""
 
@@ -112,8 +119,9 @@ class RoftTracker:
                 context.depth_renderer, context.intrinsics, config.outlier_rejection
             )
         self._mask_sync = MaskSynchroniser(config.mask, context.intrinsics.shape, self._horizon)
-        self._erosion_px = config.velocity.erosion_px(context.intrinsics.width_px)
-        self._velocity_kf = VelocityKF(config.velocity)
+        width = context.intrinsics.width_px
+        self._stride = config.velocity.stride(width)
+        self._velocity_kf = VelocityKF(config.velocity, width)
         self.reset(None)
 
     @property
@@ -150,11 +158,28 @@ class RoftTracker:
         self._totals: Counter[str] = Counter()
 
     # ------------------------------------------------------------------ per-frame inputs
-    def _velocity_step(self, obs: Observation, pixels: PixelSet | None) -> tuple[F64 | None, int]:
-        """Runs the velocity KF; returns the UKF's velocity measurement and pixels used."""
+    def _erosion_radius_px(self, pixels: PixelSet, depth_m: NDArray[np.floating]) -> int:
+        """``velocity.mask_erosion_px``, or the metric rule when that is None."""
+        cfg = self._config.velocity
+        if cfg.mask_erosion_px is not None:
+            return cfg.mask_erosion_px
+        return metric_erosion_px(
+            pixels,
+            depth_m,
+            self._intrinsics.fx_px,
+            cfg.mask_erosion_m,
+            cfg.mask_erosion_max_removed,
+        )
+
+    def _velocity_step(
+        self, obs: Observation, pixels: PixelSet | None
+    ) -> tuple[F64 | None, F64 | None, int]:
+        """Runs the velocity KF; returns the UKF's velocity measurement (None when there is
+        none), the covariance to add to its noise (or None) and the pixels used."""
         if obs.depth_m is None:  # dropped camera frame: no measurement at all
-            return None, 0
+            return None, None, 0
         used = 0
+        updated = False
         prev = self._previous
         flow = obs.flow
         if (
@@ -173,13 +198,22 @@ class RoftTracker:
                     self._intrinsics,
                     dt,
                     self._config.velocity,
+                    stride=self._stride,
                 )
-                if self._velocity_kf.step(meas):
+                frames = dt * self._context.fps
+                if self._velocity_kf.step(meas, frames=frames, t_s=obs.t_s, dt_s=dt):
                     used = len(meas)
-        if pixels is not None and self._erosion_px:
-            pixels = erode_pixels(pixels, self._erosion_px)
+                    updated = True
+        if pixels is not None:
+            radius = self._erosion_radius_px(pixels, obs.depth_m)
+            if radius:
+                pixels = erode_pixels(pixels, radius)
         self._previous = _PreviousFrame(obs.k, obs.t_s, pixels, obs.depth_m)
-        return self._velocity_kf.x.copy(), used
+        vcfg = self._config.velocity
+        if not updated and vcfg.skip_stale_velocity:
+            return None, None, used
+        cov = self._velocity_kf.P.copy() if vcfg.twist_covariance_to_ukf else None
+        return self._velocity_kf.x.copy(), cov, used
 
     def _file_poses(
         self, k: int, poses: tuple[PoseDetection, ...]
@@ -303,22 +337,33 @@ class RoftTracker:
         Returns:
             The corrected belief and the number of poses gated in a row after this one.
         """
+        twist_cov = frame.twist_cov if twist is not None else None
         if pose is self._init_pose:
             self._decisions[pose.detection_id] = True
             return (
                 self._ukf.correct(
-                    predicted, twist=twist, p_meas_m=pose.p_m, q_meas_wxyz=pose.q_wxyz
+                    predicted,
+                    twist=twist,
+                    twist_cov=twist_cov,
+                    p_meas_m=pose.p_m,
+                    q_meas_wxyz=pose.q_wxyz,
                 ),
                 0,
             )
-        without_pose = self._ukf.correct(predicted, twist=twist) if first else predicted
+        without_pose = (
+            self._ukf.correct(predicted, twist=twist, twist_cov=twist_cov) if first else predicted
+        )
         if self._gate_rejects(predicted, pose, streak):
             self._decisions[pose.detection_id] = False
             self._gated.add(pose.detection_id)
             return without_pose, streak + 1
         self._gated.discard(pose.detection_id)
         with_pose = self._ukf.correct(
-            predicted, twist=twist, p_meas_m=pose.p_m, q_meas_wxyz=pose.q_wxyz
+            predicted,
+            twist=twist,
+            twist_cov=twist_cov,
+            p_meas_m=pose.p_m,
+            q_meas_wxyz=pose.q_wxyz,
         )
         test = self._outlier_test
         if test is None:
@@ -340,10 +385,11 @@ class RoftTracker:
         no_predict = j == self._no_predict_frame
         belief = prior if no_predict else self._ukf.predict(prior, frame.dt_s)
         twist = frame.twist if self._config.use_velocity else None
+        twist_cov = frame.twist_cov if twist is not None else None
         streak = self._gate_streaks.get(j - 1, 0)
         poses = sorted(self._poses.get(j, []), key=lambda p: p.detection_id)
         if not self._config.use_pose or not poses:
-            belief = self._ukf.correct(belief, twist=twist)
+            belief = self._ukf.correct(belief, twist=twist, twist_cov=twist_cov)
         else:
             for i, pose in enumerate(poses):
                 belief, streak = self._correct_with_pose(
@@ -382,13 +428,13 @@ class RoftTracker:
             mask_step = self._mask_sync.step(k, obs.flow if cfg.use_flow else None, masks)
             pixels, mask_counts = mask_step.pixels, mask_step.counts
         self._mask = pixels
-        twist, flow_pixels = (None, 0)
+        twist, twist_cov, flow_pixels = (None, None, 0)
         if cfg.use_flow:
-            twist, flow_pixels = self._velocity_step(obs, pixels)
+            twist, twist_cov, flow_pixels = self._velocity_step(obs, pixels)
         samples = None
         if self._uses_outlier_test and pixels is not None and obs.depth_m is not None:
             samples = depth_samples(pixels, obs.depth_m, cfg.outlier_rejection)
-        self._frames[k] = _Frame(dt_s=float(dt), twist=twist, samples=samples)
+        self._frames[k] = _Frame(dt_s=float(dt), twist=twist, twist_cov=twist_cov, samples=samples)
 
         new, dropped, dropped_ids = self._file_poses(k, obs.poses)
         replay = 0
@@ -421,7 +467,7 @@ class RoftTracker:
             **{f"poses_dropped_{reason}": n for reason, n in dropped.items()},
             **{f"total_{name}": n for name, n in self._totals.items()},
         }
-        spatial_twist = self._velocity_kf.x.copy() if cfg.use_flow else None
+        spatial_twist = self._velocity_kf.x_frame.copy() if cfg.use_flow else None
         if estimate_belief is None:
             return Estimate.invalid(
                 k,

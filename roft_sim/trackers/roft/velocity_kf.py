@@ -51,6 +51,8 @@ class FlowMeasurement:
     """(N,) pixel columns in frame k-1."""
     v_px: NDArray[np.int64]
     """(N,) pixel rows in frame k-1."""
+    cell_weight: F64 | None = None
+    """(N,) 1 / (number of the N pixels that read the same flow grid cell), or None (all 1)."""
 
     def __len__(self) -> int:
         return int(self.y_px.shape[0])
@@ -89,6 +91,8 @@ def flow_measurement(
     intrinsics: CameraIntrinsics,
     dt_s: float,
     config: VelocityKFConfig,
+    *,
+    stride: int | None = None,
 ) -> FlowMeasurement:
     """Builds the flow measurement from the mask and depth of frame k-1 and the flow F_k.
 
@@ -100,17 +104,34 @@ def flow_measurement(
         intrinsics: the camera.
         dt_s: time between the two frames [s].
         config: the filter settings.
+        stride: the subsampling stride (default ``config.subsampling_stride`` as given; the
+            tracker passes ``config.stride(width)``).
     """
-    index = pixels.index[:: config.subsampling_stride]
+    index = pixels.index[:: stride if stride is not None else config.subsampling_stride]
     z = np.take(depth_m.reshape(-1), index).astype(np.float64)
     w = pixels.shape[1]
     v = index // w
     u = index - v * w
     f, ok = lookup_flow(flow, u, v)
     ok &= (z > 0.0) & (z < config.depth_maximum_m)
+    if config.depth_band_m is not None and ok.any():
+        ok &= np.abs(z - np.median(z[ok])) < config.depth_band_m
     u, v, z, f = u[ok], v[ok], z[ok], f[ok]
     y = np.stack([f.real, f.imag], axis=1).astype(np.float64)
-    return FlowMeasurement(y_px=y, J=flow_jacobian(intrinsics, u, v, z, dt_s), u_px=u, v_px=v)
+    cell_weight = None
+    if config.independent_pixels_per_cell and flow.grid_px > 1 and u.size:
+        g = flow.grid_px
+        _, inverse, counts = np.unique(
+            (v // g) * (w // g + 1) + u // g, return_inverse=True, return_counts=True
+        )
+        cell_weight = 1.0 / counts[inverse].astype(np.float64)
+    return FlowMeasurement(
+        y_px=y,
+        J=flow_jacobian(intrinsics, u, v, z, dt_s),
+        u_px=u,
+        v_px=v,
+        cell_weight=cell_weight,
+    )
 
 
 def laplacian_likelihood(innovation_px: F64, pairs: str = "correct") -> F64:
@@ -137,47 +158,125 @@ def laplacian_likelihood(innovation_px: F64, pairs: str = "correct") -> F64:
     return lik / float(lik.max())
 
 
-class VelocityKF:
-    """Linear KF of the spatial twist (v_o, w); batched information-form update."""
+_MAD_TO_SIGMA = 1.4826
+"""Median absolute deviation to standard deviation for Gaussian data."""
 
-    def __init__(self, config: VelocityKFConfig):
+
+class VelocityKF:
+    """Linear KF of the spatial twist (v_o, w); batched information-form update.
+
+    With the reference settings (``adapt_*`` off, ``midpoint_timing`` off) this is the
+    reference's filter; the adaptive parts are described on :class:`VelocityKFConfig`.
+    """
+
+    def __init__(self, config: VelocityKFConfig, width_px: int | None = None):
+        """Args:
+        config: the settings.
+        width_px: image width [px] for the resolution scaling of the flow noise (None: the
+            noise as given).
+        """
         self._config = config
-        self._Q = np.diag(np.concatenate([config.sigma_linear, config.sigma_angular]))
-        self._R = np.asarray(config.cov_flow, dtype=np.float64)
+        self._Q_base = np.concatenate([config.sigma_linear, config.sigma_angular]).astype(
+            np.float64
+        )
+        self._R = np.asarray(
+            config.flow_variance_px2(width_px) if width_px is not None else config.cov_flow,
+            dtype=np.float64,
+        )
         self.reset()
 
     def reset(self) -> None:
         cfg = self._config
         self.x: F64 = np.concatenate([cfg.initial_v_mps, cfg.initial_w_radps]).astype(np.float64)
-        """(6,) mean (v_o [m/s], w [rad/s])."""
+        """(6,) mean (v_o [m/s], w [rad/s]): the mean twist over the last corrected interval."""
         self.P: F64 = np.diag(np.concatenate([cfg.cov_v0, cfg.cov_w0])).astype(np.float64)
         """(6, 6) covariance."""
+        self.x_frame: F64 = self.x.copy()
+        """(6,) the twist reported for the last frame: ``x`` carried half an interval forward
+        with ``midpoint_timing``, else ``x``."""
+        self.q_diag: F64 = self._Q_base.copy()
+        """(6,) the process noise variance per frame in use (adapted, or the configured)."""
+        self.flow_sigma_px: F64 = np.sqrt(self._R)
+        """(2,) the flow noise standard deviation used by the last update [px]."""
+        self._previous_mid_t: float | None = None
 
-    def step(self, measurement: FlowMeasurement | None) -> bool:
-        """Predicts one frame and corrects with ``measurement``.
+    def _solve(self, P_pred: F64, J2: F64, innovation: F64, weight: F64) -> tuple[F64, F64]:
+        JtW = J2.T * weight  # (6, 2N)
+        info = np.linalg.inv(P_pred) + JtW @ J2
+        P_post = np.linalg.inv(info)
+        P_post = 0.5 * (P_post + P_post.T)
+        return P_post @ (JtW @ innovation.reshape(-1)), P_post
+
+    def step(
+        self,
+        measurement: FlowMeasurement | None,
+        *,
+        frames: float = 1.0,
+        t_s: float | None = None,
+        dt_s: float | None = None,
+    ) -> bool:
+        """Predicts over ``frames`` nominal frames and corrects with ``measurement``.
+
+        Args:
+            measurement: the flow measurement of the interval, or None.
+            frames: how many nominal frame intervals the flow spans (Q scales with it).
+            t_s: time of the current frame [s] (for ``midpoint_timing``).
+            dt_s: the interval the flow spans [s] (for ``midpoint_timing``).
 
         Returns:
             True if the belief was updated; False if there was no measurement or fewer than
             ``min_pixels`` valid pixels, in which case the previous corrected belief is kept
             (the prediction is undone, as in the reference).
         """
-        if measurement is None or len(measurement) < self._config.min_pixels:
+        cfg = self._config
+        if measurement is None or len(measurement) < cfg.min_pixels:
             return False
         x_pred = self.x
-        P_pred = self.P + self._Q
+        P_pred = self.P + np.diag(self.q_diag * max(frames, 1e-9))
         J, y = measurement.J, measurement.y_px
         innovation = y - J @ x_pred  # (N, 2)
-        if self._config.weight_flow:
-            lik = laplacian_likelihood(innovation, self._config.reweighting_pairs)
+        if cfg.weight_flow:
+            lik = laplacian_likelihood(innovation, cfg.reweighting_pairs)
         else:
             lik = np.ones(len(measurement))
-        W = (lik[:, None] / self._R[None, :]).reshape(-1)  # (2N,) inverse variances
+        if measurement.cell_weight is not None:
+            lik = lik * measurement.cell_weight
         J2 = J.reshape(-1, 6)
-        JtW = J2.T * W  # (6, 2N)
-        info = np.linalg.inv(P_pred) + JtW @ J2
-        rhs = JtW @ innovation.reshape(-1)
-        P_post = np.linalg.inv(info)
-        P_post = 0.5 * (P_post + P_post.T)
-        self.x = x_pred + P_post @ rhs
+        R = self._R
+        dx, P_post = self._solve(P_pred, J2, innovation, (lik[:, None] / R[None, :]).reshape(-1))
+        if cfg.adapt_flow_noise:
+            residual = y - J @ (x_pred + dx)
+            spread = _MAD_TO_SIGMA * np.median(np.abs(residual), axis=0)
+            R = np.maximum(R, spread**2)
+            dx, P_post = self._solve(
+                P_pred, J2, innovation, (lik[:, None] / R[None, :]).reshape(-1)
+            )
+        self.flow_sigma_px = np.sqrt(R)
+        if cfg.adapt_process_noise:
+            # innovation-based covariance matching on the measurement-only estimate x_ls of this
+            # interval: E[(x_ls - x)^2] = Q + P + P_ls (F = I), so the sample of Q does not
+            # shrink with the filter's own gain (the Sage-Husa form on K nu does, and locks in)
+            W = (lik[:, None] / R[None, :]).reshape(-1)
+            info_ls = (J2.T * W) @ J2
+            try:
+                P_ls = np.linalg.inv(info_ls)
+                d_ls = P_ls @ ((J2.T * W) @ innovation.reshape(-1))
+                sample = np.maximum(d_ls**2 - np.diag(self.P) - np.diag(P_ls), 0.0) / max(
+                    frames, 1.0
+                )
+            except np.linalg.LinAlgError:  # unobservable interval: keep Q
+                sample = self.q_diag
+            a = 1.0 / cfg.adaptation_frames
+            floor = self._Q_base * cfg.process_noise_floor
+            self.q_diag = np.maximum((1.0 - a) * self.q_diag + a * sample, floor)
+        x_new = x_pred + dx
+        self.x_frame = x_new
+        if cfg.midpoint_timing and t_s is not None and dt_s is not None:
+            mid_t = t_s - 0.5 * dt_s
+            if self._previous_mid_t is not None and mid_t > self._previous_mid_t:
+                rate = (x_new - self.x) / (mid_t - self._previous_mid_t)
+                self.x_frame = x_new + rate * (0.5 * dt_s)
+            self._previous_mid_t = mid_t
+        self.x = x_new
         self.P = P_post
         return True
