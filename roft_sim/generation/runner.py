@@ -101,6 +101,9 @@ class GenerationOptions:
     """Threads per worker that encode and write frames while the next frame is generated
     (OpenCV's PNG encoder, zlib and file writes release the GIL); 0 = write on the generating
     thread. At most ``writer_threads + 1`` generated frames wait in memory per worker."""
+    pipelined: bool = True
+    """Compute each frame's flow sets and simulated networks on a second thread while the next
+    frame renders (:meth:`SequenceGenerator.frames`); the bytes are the same either way."""
 
     def __post_init__(self) -> None:
         if self.format not in DATASET_FORMATS:
@@ -254,6 +257,7 @@ def run_work_unit(
     *,
     report: Callable[[int], None] | None = None,
     writer_threads: int = 1,
+    pipelined: bool = True,
 ) -> int:
     """Generates and writes the frames of one unit with a generator of ``job``'s scenario.
 
@@ -261,11 +265,12 @@ def run_work_unit(
     generated; at most ``writer_threads`` frames wait for a writer, so memory stays flat. A
     frame is reported (``report(1)``) once its files are written, in frame order. Each frame's
     files are written atomically by the writer, so the bytes do not depend on the threads.
+    ``pipelined`` is passed to the generator's ``frames``.
 
     Returns:
         Frames written.
     """
-    frames = generator.frames(unit.start, unit.stop)
+    frames = generator.frames(unit.start, unit.stop, pipelined=pipelined)
     written = 0
     if writer_threads == 0:
         for frame in frames:
@@ -337,6 +342,7 @@ def _worker_run(unit: WorkUnit) -> int:
         _STATE.generator(unit.sequence),
         report=report_progress,
         writer_threads=_STATE.options.writer_threads,
+        pipelined=_STATE.options.pipelined,
     )
 
 
