@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import contextlib
+import functools
 import multiprocessing
 import queue
+import uuid
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
@@ -44,12 +46,33 @@ def _start_worker(
         setup.initializer(*setup.initargs)
 
 
+_SETUPS_DONE: set[str] = set()
+"""Tokens of the map set-ups this worker process has run (pools started by ``start()``)."""
+
+
+def _spawned() -> None:
+    """A no-op task: submitting one makes the pool spawn a worker now."""
+
+
+def _run_after_setup(token: str, setup: WorkerSetup, fn: Callable[[U], R], unit: U) -> R:
+    """Runs the map's set-up once per worker process (the first time a unit of the map lands
+    there), then ``fn(unit)``: how a pool started before the map learns the map's set-up."""
+    if token not in _SETUPS_DONE:
+        if setup.initializer is not None:
+            setup.initializer(*setup.initargs)
+        _SETUPS_DONE.add(token)
+    return fn(unit)
+
+
 class LocalProcessExecutor:
     """A pool of ``workers`` processes on this machine, started with ``spawn`` (never ``fork``:
     MuJoCo's OpenGL contexts must not be inherited).
 
     Every worker runs the setup's initializer once and keeps its state (e.g. a renderer) for all
-    the units it runs; at most two units per worker are in flight, so a failure or Ctrl-C leaves
+    the units it runs. :meth:`start` spawns the workers ahead of the map (each runs the
+    executor's ``initializer``, e.g. imports and a renderer), so that their start-up overlaps
+    what the caller prepares meanwhile; the map's own set-up then runs in each worker before its
+    first unit; at most two units per worker are in flight, so a failure or Ctrl-C leaves
     little queued work to cancel, and then the workers are terminated at once (units write
     atomically, so a unit stopped half-way leaves nothing a rerun would not repair).
 
@@ -78,6 +101,34 @@ class LocalProcessExecutor:
         self.start_method = start_method
         self.initializer = initializer
         self.initargs = initargs
+        self._started: tuple[ProcessPoolExecutor, Any] | None = None
+
+    def start(self) -> None:
+        """Spawns the worker processes now (idempotent); the next :meth:`map_unordered` runs
+        on them and shuts them down when it ends. Call :meth:`close` if no map follows."""
+        if self._started is not None:
+            return
+        ctx = multiprocessing.get_context(self.start_method)
+        progress = ctx.Queue()
+        pool = ProcessPoolExecutor(
+            max_workers=self._workers,
+            mp_context=ctx,
+            initializer=_start_worker,
+            initargs=(progress, self.initializer, self.initargs, None),
+        )
+        self._started = (pool, progress)
+        for _ in range(self._workers):  # no worker is idle yet: each submit spawns one
+            pool.submit(_spawned)
+
+    def close(self) -> None:
+        """Stops workers started by :meth:`start` that no map has used (idempotent)."""
+        if self._started is not None:
+            pool, progress = self._started
+            self._started = None
+            _terminate(pool)
+            pool.shutdown(wait=True, cancel_futures=True)
+            progress.close()
+            progress.join_thread()
 
     @property
     def workers(self) -> int:
@@ -97,9 +148,22 @@ class LocalProcessExecutor:
     ) -> Iterator[tuple[U, R]]:
         """See :meth:`roft_sim.executors.Executor.map_unordered`."""
         if not units:
+            self.close()
             return
-        ctx = multiprocessing.get_context(self.start_method)
-        progress = ctx.Queue() if on_progress is not None else None
+        if self._started is not None:  # workers already running: their set-up comes with fn
+            pool, progress = self._started
+            self._started = None
+            if setup is not None:
+                fn = functools.partial(_run_after_setup, uuid.uuid4().hex, setup, fn)
+        else:
+            ctx = multiprocessing.get_context(self.start_method)
+            progress = ctx.Queue() if on_progress is not None else None
+            pool = ProcessPoolExecutor(
+                max_workers=min(self._workers, len(units)),
+                mp_context=ctx,
+                initializer=_start_worker,
+                initargs=(progress, self.initializer, self.initargs, setup),
+            )
         pending = list(reversed(units))
         running: dict[Future[R], U] = {}
 
@@ -107,12 +171,6 @@ class LocalProcessExecutor:
             if progress is not None:
                 drain_progress(progress.get_nowait, queue.Empty, on_progress)
 
-        pool = ProcessPoolExecutor(
-            max_workers=min(self._workers, len(units)),
-            mp_context=ctx,
-            initializer=_start_worker,
-            initargs=(progress, self.initializer, self.initargs, setup),
-        )
         try:
             while pending or running:
                 while pending and len(running) < 2 * self._workers:
@@ -138,14 +196,19 @@ class LocalProcessExecutor:
             drain()
         except BaseException:
             # Stop now rather than after the units in flight (also when the caller stops
-            # iterating). ProcessPoolExecutor has no public terminate; _processes is stable
-            # since Python 3.8.
-            for proc in list((getattr(pool, "_processes", None) or {}).values()):
-                with contextlib.suppress(Exception):
-                    proc.terminate()
+            # iterating).
+            _terminate(pool)
             raise
         finally:
             pool.shutdown(wait=True, cancel_futures=True)
             if progress is not None:
                 progress.close()
                 progress.join_thread()
+
+
+def _terminate(pool: ProcessPoolExecutor) -> None:
+    """Terminates a pool's worker processes at once. ProcessPoolExecutor has no public
+    terminate; ``_processes`` is stable since Python 3.8."""
+    for proc in list((getattr(pool, "_processes", None) or {}).values()):
+        with contextlib.suppress(Exception):
+            proc.terminate()

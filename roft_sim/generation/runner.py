@@ -101,6 +101,9 @@ class GenerationOptions:
     """Threads per worker that encode and write frames while the next frame is generated
     (OpenCV's PNG encoder, zlib and file writes release the GIL); 0 = write on the generating
     thread. At most ``writer_threads + 1`` generated frames wait in memory per worker."""
+    pipelined: bool = True
+    """Compute each frame's flow sets and simulated networks on a second thread while the next
+    frame renders (:meth:`SequenceGenerator.frames`); the bytes are the same either way."""
 
     def __post_init__(self) -> None:
         if self.format not in DATASET_FORMATS:
@@ -215,19 +218,28 @@ class _WorkerState:
         self.options = options
         self._current: tuple[int, Any] | None = None
 
-    def generator(self, sequence: int) -> Any:
+    def prebuild(self, sequence: int, scenario: Scenario) -> None:
+        """Builds the generator of ``sequence`` before its job is known (while the driver
+        prepares the jobs); :meth:`generator` checks it against the job like any other."""
+        self.close()
+        self._current = (sequence, self._build(scenario))
+
+    def _build(self, scenario: Scenario) -> Any:
         from roft_sim.generation.sequence_generator import SequenceGenerator
 
-        if self._current is not None and self._current[0] == sequence:
-            return self._current[1]
-        self.close()
-        job = self.jobs[sequence]
-        gen = SequenceGenerator(
-            job.scenario, assets_dir=self.options.assets_dir, cache_dir=self.options.cache_dir
+        return SequenceGenerator(
+            scenario, assets_dir=self.options.assets_dir, cache_dir=self.options.cache_dir
         )
+
+    def generator(self, sequence: int) -> Any:
+        job = self.jobs[sequence]
+        if self._current is None or self._current[0] != sequence:
+            self.close()
+            self._current = (sequence, self._build(job.scenario))
+        gen = self._current[1]
         source = str(gen.renderer.object_assets.source)
         if job.object_source and source != job.object_source:
-            gen.close()
+            self.close()
             raise ConfigError(
                 f"{job.sequence_name}: on worker host {socket.gethostname()!r} the object "
                 f"{job.scenario.object.name_or_path} loads as {source!r}, but the driver found "
@@ -235,7 +247,6 @@ class _WorkerState:
                 "node the same meshes (--assets on shared storage, or the same "
                 "`roft-sim assets install` cache) and run again with --resume"
             )
-        self._current = (sequence, gen)
         return gen
 
     def close(self) -> None:
@@ -251,6 +262,7 @@ def run_work_unit(
     *,
     report: Callable[[int], None] | None = None,
     writer_threads: int = 1,
+    pipelined: bool = True,
 ) -> int:
     """Generates and writes the frames of one unit with a generator of ``job``'s scenario.
 
@@ -258,11 +270,12 @@ def run_work_unit(
     generated; at most ``writer_threads`` frames wait for a writer, so memory stays flat. A
     frame is reported (``report(1)``) once its files are written, in frame order. Each frame's
     files are written atomically by the writer, so the bytes do not depend on the threads.
+    ``pipelined`` is passed to the generator's ``frames``.
 
     Returns:
         Frames written.
     """
-    frames = generator.frames(unit.start, unit.stop)
+    frames = generator.frames(unit.start, unit.stop, pipelined=pipelined)
     written = 0
     if writer_threads == 0:
         for frame in frames:
@@ -295,7 +308,24 @@ in-process executor)."""
 
 def _init_worker(jobs: Sequence[SequenceJob], options: GenerationOptions) -> None:
     global _STATE
-    _STATE = _WorkerState(jobs, options)
+    if _STATE is not None and _STATE.options == options:  # started early: keep its generator
+        _STATE.jobs = jobs
+    else:
+        _close_worker()
+        _STATE = _WorkerState(jobs, options)
+
+
+def _start_worker_early(scenarios: Sequence[Scenario], options: GenerationOptions) -> None:
+    """Runs in each worker spawned before the jobs are ready (:func:`_prestarted_executor`):
+    imports, then the first sequence's generator (object, scene, OpenGL contexts). A failure
+    here is left for the driver's checks, or the unit's own set-up, to report."""
+    global _STATE
+    _STATE = _WorkerState((), options)
+    try:
+        _STATE.prebuild(0, scenarios[0])
+    except Exception:  # noqa: BLE001 - reported where it matters (see the docstring)
+        _log.debug("early generator set-up failed; the unit will set it up again", exc_info=True)
+        _STATE.close()
 
 
 def _close_worker() -> None:
@@ -317,6 +347,7 @@ def _worker_run(unit: WorkUnit) -> int:
         _STATE.generator(unit.sequence),
         report=report_progress,
         writer_threads=_STATE.options.writer_threads,
+        pipelined=_STATE.options.pipelined,
     )
 
 
@@ -383,6 +414,25 @@ def _visibility_of(path: Path | None) -> dict[str, float] | None:
     return value if isinstance(value, dict) else None
 
 
+def _prestarted_executor(
+    scenarios: Sequence[Scenario], options: GenerationOptions
+) -> LocalProcessExecutor | None:
+    """Local worker processes started now, each setting up the first sequence's generator
+    while the driver loads objects and opens writers (None when the run will not use several
+    local workers: one worker, or at most one unit of frames)."""
+    units = sum(-(-s.n_frames // options.chunk_frames) for s in scenarios)
+    if options.workers == 1 or units <= 1 or options.stop_after_frames is not None:
+        return None
+    executor = LocalProcessExecutor(
+        options.workers,
+        start_method=options.start_method,
+        initializer=_start_worker_early,
+        initargs=(list(scenarios), options),
+    )
+    executor.start()
+    return executor
+
+
 def generate_dataset(
     scenarios: Sequence[Scenario],
     out_dir: str | Path,
@@ -433,29 +483,34 @@ def generate_dataset(
         raise ConfigError("no scenario to generate; give at least one scenario file or a preset")
     out = Path(out_dir)
     resolved = [overrides.apply(s) for s in scenarios]
-    jobs = prepare_jobs(
-        resolved,
-        out,
-        fmt=options.format,
-        sequence_names=sequence_names_for(resolved, sequence_naming),
-        overrides=overrides,
-        preset=preset,
-        resume=options.resume or options.shard is not None,
-        assets_dir=options.assets_dir,
-        cache_dir=options.cache_dir,
-        gl_backend=options.gl_backend,
-        prepare_output=prepare_output,
-        shard_run=options.shard is not None,
-        png_compression=options.png_compression,
-    )
-    units = _planned_units(jobs, options)
-    progress = _RunProgress(jobs, finalize=options.shard is None)
-    if options.shard is None:
-        progress.finalize_complete_sequences()
-    if executor is None:
-        executor = _default_executor(options, len(units))
-    if units:
-        _run_units(executor, units, jobs, options, progress, on_frames)
+    early = _prestarted_executor(resolved, options) if executor is None else None
+    try:
+        jobs = prepare_jobs(
+            resolved,
+            out,
+            fmt=options.format,
+            sequence_names=sequence_names_for(resolved, sequence_naming),
+            overrides=overrides,
+            preset=preset,
+            resume=options.resume or options.shard is not None,
+            assets_dir=options.assets_dir,
+            cache_dir=options.cache_dir,
+            gl_backend=options.gl_backend,
+            prepare_output=prepare_output,
+            shard_run=options.shard is not None,
+            png_compression=options.png_compression,
+        )
+        units = _planned_units(jobs, options)
+        progress = _RunProgress(jobs, finalize=options.shard is None)
+        if options.shard is None:
+            progress.finalize_complete_sequences()
+        if executor is None:
+            executor = early if early is not None else _default_executor(options, len(units))
+        if units:
+            _run_units(executor, units, jobs, options, progress, on_frames)
+    finally:
+        if early is not None:
+            early.close()  # a no-op once a map has used the workers
     return GenerationSummary(
         sequences=progress.results(),
         wall_s=time.perf_counter() - t0,

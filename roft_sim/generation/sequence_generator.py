@@ -27,7 +27,9 @@ and split among workers in any way, with byte-identical results on the same rend
 
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any, cast
 
 import numpy as np
@@ -256,9 +258,14 @@ class SequenceGenerator:
         return self._renderer
 
     # ------------------------------------------------------------------------------ frames
-    def frames(self, start: int, stop: int) -> Iterator[DatasetFrame]:
+    def frames(self, start: int, stop: int, *, pipelined: bool = True) -> Iterator[DatasetFrame]:
         """Frames ``start ... stop-1`` in order (frame ``start - 1`` is rendered too, for the
-        flow of frame ``start``). Only two rendered frames are held at a time.
+        flow of frame ``start``).
+
+        With ``pipelined`` the flow sets and simulated networks of frame k are computed on a
+        second thread while frame k+1 renders on this one (the OpenGL contexts stay on this
+        thread; OpenCV and numpy release the GIL); the frames are the same either way. At most
+        three rendered frames are held at a time (two without).
 
         Raises:
             IndexError: the range is outside ``0 .. n_frames``.
@@ -266,20 +273,44 @@ class SequenceGenerator:
         if not 0 <= start <= stop <= self.n_frames:
             raise IndexError(f"frames {start}..{stop - 1} outside 0..{self.n_frames - 1}")
         previous = self._renderer.render_frame(start - 1) if start > 0 else None
-        for k in range(start, stop):
-            current = self._renderer.render_frame(k)
-            yield self.dataset_frame(current, previous)
-            previous = current
+        if not pipelined:
+            for k in range(start, stop):
+                current = self._renderer.render_frame(k)
+                yield self.dataset_frame(current, previous)
+                previous = current
+            return
+        with ThreadPoolExecutor(1, thread_name_prefix="roft-sim-frame") as networks:
+            queued: deque[Future[DatasetFrame]] = deque()
+            for k in range(start, stop):
+                current = self._renderer.render_frame(k)
+                full = self._full_silhouette(current)  # OpenGL: on this thread
+                queued.append(
+                    networks.submit(self.dataset_frame, current, previous, full_silhouette=full)
+                )
+                previous = current
+                if len(queued) > 1:
+                    yield queued.popleft().result()
+            while queued:
+                yield queued.popleft().result()
 
-    def dataset_frame(self, current: RenderedFrame, previous: RenderedFrame | None) -> DatasetFrame:
+    def dataset_frame(
+        self,
+        current: RenderedFrame,
+        previous: RenderedFrame | None,
+        *,
+        full_silhouette: Bool | None = None,
+    ) -> DatasetFrame:
         """The dataset frame of rendered frame ``current.k``; ``previous`` is frame k-1 (None
-        only for k = 0)."""
+        only for k = 0). ``full_silhouette``: the (H, W) bool silhouette of the object alone
+        at frame k's pose, when already rendered (else it is rendered here)."""
         k = current.k
         if k > 0 and (previous is None or previous.k != k - 1):
             raise ValueError(f"frame {k} needs the rendered frame {k - 1} for its flow")
         visible = current.object_mask
         assert visible is not None  # rendered with segmentation
-        full = self._full_silhouette(current) | visible
+        if full_silhouette is None:
+            full_silhouette = self._full_silhouette(current)
+        full = full_silhouette | visible
         vis = visible_fraction(visible, full)
         nets = self.networks
         flows: dict[str, FlowField] = {}

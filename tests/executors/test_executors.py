@@ -90,6 +90,38 @@ def test_local_processes_keep_worker_state_and_report_progress(workers):
     assert sum(seen) == 2 * len(units)
 
 
+def test_started_workers_are_spawned_before_the_map_and_run_its_setup_before_their_units():
+    """start() spawns the processes at once (each runs the executor's initializer); the map
+    then runs on those processes, its own set-up once per worker before the first unit."""
+    seen: list[int] = []
+    executor = LocalProcessExecutor(2, initializer=start_counting, initargs=("early",))
+    executor.start()
+    started = executor._started  # the spawned pool, before any unit exists
+    assert started is not None and len(started[0]._processes) == 2
+    early_pids = {p.pid for p in started[0]._processes.values()}
+    setup = WorkerSetup(start_counting, ("map",))
+    units = list(range(8))
+    run = executor.map_unordered(count_in_worker, units, setup=setup, on_progress=seen.append)
+    out = [result for _, result in run]
+    assert sorted(x for x, *_ in out) == units and {tag for _, tag, _, _ in out} == {"map"}
+    assert {pid for _, _, pid, _ in out} <= early_pids
+    for pid in {pid for _, _, pid, _ in out}:  # the map's set-up ran once per worker
+        calls = sorted(c for _, _, p, c in out if p == pid)
+        assert calls == list(range(1, len(calls) + 1))
+    assert sum(seen) == 2 * len(units) and executor._started is None
+
+
+def test_started_workers_that_no_map_uses_are_stopped_by_close():
+    executor = LocalProcessExecutor(2)
+    executor.start()
+    assert executor._started is not None
+    processes = list(executor._started[0]._processes.values())
+    executor.close()
+    executor.close()  # idempotent
+    assert executor._started is None and not any(p.is_alive() for p in processes)
+    assert dict(executor.map_unordered(square, [2, 3])) == {2: 4, 3: 9}  # still usable
+
+
 def test_local_process_errors_name_the_unit():
     executor = LocalProcessExecutor(2)
     with pytest.raises(WorkUnitError, match=r"work unit 3 failed: ValueError: three") as info:

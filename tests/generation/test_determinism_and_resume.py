@@ -121,10 +121,10 @@ def test_a_failing_worker_reports_the_frames_and_keeps_the_written_ones(
 
     real = sequence_generator.SequenceGenerator.dataset_frame
 
-    def failing(self, current, previous):
+    def failing(self, current, previous, **kwargs):
         if current.k == 3:
             raise RuntimeError("simulated failure")
-        return real(self, current, previous)
+        return real(self, current, previous, **kwargs)
 
     monkeypatch.setattr(sequence_generator.SequenceGenerator, "dataset_frame", failing)
     with pytest.raises(GenerationError, match=r"frames 0-4 of .* RuntimeError: simulated fail"):
@@ -248,9 +248,13 @@ def test_a_worker_that_loads_another_object_source_is_refused(tmp_path):
     state.close()
 
 
-@pytest.mark.parametrize("writer_threads", [0, 3])
-def test_writer_threads_do_not_change_the_bytes(scenario, reference, tmp_path, writer_threads):
-    run_generate([scenario], tmp_path, writer_threads=writer_threads, chunk_frames=2)
+@pytest.mark.parametrize(("writer_threads", "pipelined"), [(0, False), (3, True), (1, False)])
+def test_writer_threads_and_the_network_thread_do_not_change_the_bytes(
+    scenario, reference, tmp_path, writer_threads, pipelined
+):
+    run_generate(
+        [scenario], tmp_path, writer_threads=writer_threads, pipelined=pipelined, chunk_frames=2
+    )
     assert tree_hashes(tmp_path) == reference
 
 
@@ -283,3 +287,24 @@ def test_png_compression_changes_the_bytes_not_the_images_and_a_resume_keeps_it(
         run_generate([scenario], tmp_path / "part", resume=True)
     run_generate([scenario], tmp_path / "part", resume=True, png_compression=3)
     assert tree_hashes(tmp_path / "part") == level3
+
+
+def test_pipelined_frames_compute_the_networks_off_the_rendering_thread(scenario, monkeypatch):
+    import threading
+
+    from roft_sim.generation import sequence_generator
+
+    real = sequence_generator.SequenceGenerator.dataset_frame
+    threads: dict[int, int] = {}
+
+    def recording(self, current, previous, **kwargs):
+        threads[current.k] = threading.get_ident()
+        return real(self, current, previous, **kwargs)
+
+    monkeypatch.setattr(sequence_generator.SequenceGenerator, "dataset_frame", recording)
+    with sequence_generator.SequenceGenerator(scenario) as generator:
+        piped = [f.k for f in generator.frames(1, 4)]
+        assert piped == [1, 2, 3] and threading.get_ident() not in set(threads.values())
+        threads.clear()
+        plain = [f.k for f in generator.frames(1, 4, pipelined=False)]
+        assert plain == [1, 2, 3] and set(threads.values()) == {threading.get_ident()}

@@ -24,7 +24,7 @@ class _Generator:
     writer: _Writer
     max_ahead: int = 0
 
-    def frames(self, start: int, stop: int):
+    def frames(self, start: int, stop: int, *, pipelined: bool = True):
         for k in range(start, stop):
             self.max_ahead = max(self.max_ahead, k - start - len(self.writer.written))
             yield _Frame(k)
