@@ -130,3 +130,20 @@ def test_background_flow_matches_reprojection_with_the_recorded_poses(tmp_path):
     err = np.linalg.norm(flow.flow_px[v, u] - expected, axis=1)
     assert np.median(np.linalg.norm(expected, axis=1)) > 0.5  # the background does move
     assert np.percentile(err, 99) < 0.02, f"p99 {np.percentile(err, 99):.4f} px"
+
+
+def test_a_relative_camera_file_resolves_against_the_scenario_file(tmp_path):
+    from roft_sim.scenario import load_scenario
+
+    (tmp_path / "sub").mkdir()
+    _write_tum(tmp_path / "sub" / "cam.txt")
+    (tmp_path / "sub" / "s.toml").write_text(
+        'name = "s"\nframes = 2\n[camera]\nwidth_px = 64\nheight_px = 48\nfx_px = 60.0\n'
+        "fy_px = 60.0\ncx_px = 31.5\ncy_px = 23.5\n"
+        '[camera.motion]\nkind = "file"\npath = "cam.txt"\nformat = "tum"\n'
+        'lowpass_hz = 10.0\n[object]\nname = "009_gelatin_box"\n[trajectory]\nkind = "synthetic"\n'
+    )
+    scenario = load_scenario(tmp_path / "sub" / "s.toml")
+    assert scenario.camera.motion.path == tmp_path / "sub" / "cam.txt"
+    poses = camera_poses(scenario.camera.motion, np.array([0.0, 1.0]))
+    np.testing.assert_allclose(poses.T_world_cam[0], np.eye(4), atol=1e-9)

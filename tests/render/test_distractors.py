@@ -70,3 +70,16 @@ def test_resting_and_moving_distractors_have_their_own_ground_truth(tmp_path):
 def test_a_resting_distractor_needs_the_table():
     with pytest.raises(ConfigError, match="rests on the table"):
         _scene(DistractorConfig(name="009_gelatin_box"), table=False)
+
+
+def test_relative_distractor_paths_resolve_against_the_scenario_file(tmp_path):
+    from roft_sim.scenario import load_scenario
+
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "s.toml").write_text(
+        'name = "s"\nframes = 2\n[camera]\nwidth_px = 64\nheight_px = 48\nfx_px = 60.0\n'
+        'fy_px = 60.0\ncx_px = 31.5\ncy_px = 23.5\n[object]\nname = "009_gelatin_box"\n'
+        '[trajectory]\nkind = "synthetic"\n[[scene.distractors]]\nname = "meshes/can.obj"\n'
+    )
+    scenario = load_scenario(tmp_path / "sub" / "s.toml")
+    assert scenario.scene.distractors[0].name == str(tmp_path / "sub" / "meshes" / "can.obj")
