@@ -147,3 +147,35 @@ def test_a_relative_camera_file_resolves_against_the_scenario_file(tmp_path):
     assert scenario.camera.motion.path == tmp_path / "sub" / "cam.txt"
     poses = camera_poses(scenario.camera.motion, np.array([0.0, 1.0]))
     np.testing.assert_allclose(poses.T_world_cam[0], np.eye(4), atol=1e-9)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "fmt,file,joint",
+    [("tum", "tum/dataset-room1_512_16.txt", None), ("bvh", "bvh/002_05.bvh", "CC_Base_Head")],
+)
+def test_real_captured_camera_motion_has_exact_velocities(
+    shared_trajectories_dir, fmt, file, joint
+):
+    """TUM VI room 1 (a hand-held rig) and a CMU mocap head, cleaned as the docs suggest: the
+    camera starts at rest, its twist is the derivative of its poses, and it stays near its rest
+    pose (drift removed)."""
+    config = CameraFileMotionConfig(
+        path=shared_trajectories_dir / file,
+        format=fmt,
+        joint=joint,
+        lowpass_hz=10.0,
+        remove_drift_window_s=2.0,
+        window_s=(2.0, 14.0),
+    )
+    t = np.linspace(0.5, 11.0, 30)
+    h = 1e-5
+    poses, plus, minus = (camera_poses(config, t + d) for d in (0.0, h, -h))
+    v_fd = (plus.T_world_cam[:, :3, 3] - minus.T_world_cam[:, :3, 3]) / (2 * h)
+    R_p, R_m = plus.T_world_cam[:, :3, :3], minus.T_world_cam[:, :3, :3]
+    w_fd = rotvec_from_matrix(R_p @ np.swapaxes(R_m, 1, 2)) / (2 * h)
+    np.testing.assert_allclose(poses.v_world_mps, v_fd, atol=1e-5)
+    np.testing.assert_allclose(poses.w_world_radps, w_fd, atol=1e-5)
+    np.testing.assert_allclose(camera_poses(config, 0.0).T_world_cam[0], np.eye(4), atol=1e-9)
+    assert np.linalg.norm(poses.T_world_cam[:, :3, 3], axis=1).max() < 0.5  # no walking away
+    assert np.linalg.norm(poses.w_world_radps, axis=1).max() > 0.05  # it does move
