@@ -24,7 +24,7 @@ import numpy as np
 from roft_sim.config_files import dataclass_from_mapping, load_toml
 from roft_sim.errors import ConfigError
 from roft_sim.geometry import CameraIntrinsics
-from roft_sim.scene.config import CameraMotionConfig, RenderConfig, SceneConfig
+from roft_sim.scene.config import CameraMotionConfig, DistractorConfig, RenderConfig, SceneConfig
 from roft_sim.sensors.networks import NetworksConfig
 from roft_sim.trajectories import (
     CapturedMotionConfig,
@@ -208,11 +208,11 @@ class Scenario:
 def load_scenario(path: str | Path) -> Scenario:
     """Reads a scenario TOML file strictly.
 
-    Relative paths in it (``[object] mesh``, ``[trajectory] path``, ``[camera.motion] path``) are
-    resolved here, against the file's folder, and stored absolute. A ``kind = "hand-motion"``
-    trajectory is resolved here too, into the motion it stands for (the captured file when
-    present, else the fitted continuous profile; logged), so that the scenario, and the metadata
-    of what it generates, say which motion was used.
+    Relative paths in it (``[object] mesh``, ``[trajectory] path``, ``[camera.motion] path``, the
+    distractors' mesh and trajectory files) are resolved here, against the file's folder, and
+    stored absolute. A ``kind = "hand-motion"`` trajectory is resolved here too, into the motion
+    it stands for (the captured file when present, else the fitted continuous profile; logged),
+    so that the scenario, and the metadata of what it generates, say which motion was used.
 
     Raises:
         ConfigError: missing file, invalid TOML, unknown key, missing key or bad value; the
@@ -240,4 +240,21 @@ def load_scenario(path: str | Path) -> Scenario:
     if isinstance(motion_path, Path) and not motion_path.is_absolute():
         motion = dataclasses.replace(camera.motion, path=base_dir / motion_path)  # type: ignore[type-var]
         camera = dataclasses.replace(camera, motion=motion)
-    return dataclasses.replace(scenario, object=obj, trajectory=trajectory, camera=camera)
+    distractors = tuple(_resolve_distractor(d, base_dir) for d in scenario.scene.distractors)
+    scene = dataclasses.replace(scenario.scene, distractors=distractors)
+    return dataclasses.replace(
+        scenario, object=obj, trajectory=trajectory, camera=camera, scene=scene
+    )
+
+
+def _resolve_distractor(distractor: DistractorConfig, base_dir: Path) -> DistractorConfig:
+    """A distractor's relative mesh file (``name`` ending in .obj/.ply/.stl) and trajectory file,
+    resolved against the scenario file's folder."""
+    name = distractor.name
+    if Path(name).suffix.lower() in (".obj", ".ply", ".stl") and not Path(name).is_absolute():
+        distractor = dataclasses.replace(distractor, name=str(base_dir / name))
+    traj_path = getattr(distractor.trajectory, "path", None)
+    if isinstance(traj_path, Path) and not traj_path.is_absolute():
+        trajectory = dataclasses.replace(distractor.trajectory, path=base_dir / traj_path)  # type: ignore[type-var]
+        distractor = dataclasses.replace(distractor, trajectory=trajectory)
+    return distractor

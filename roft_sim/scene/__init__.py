@@ -1,15 +1,22 @@
-"""The MuJoCo scene: configuration, procedural textures, hand occluder, camera ego-motion, and
-the ``MjSpec`` builder (:mod:`roft_sim.scene.builder`, which imports MuJoCo: select the GL backend
-before importing it).
+"""The MuJoCo scene: configuration, procedural textures, the hand (rigid proxy,
+:mod:`roft_sim.scene.hand`, or articulated with a synthesised grasp,
+:mod:`roft_sim.scene.articulated_hand`), camera ego-motion (sway or captured), distractor objects,
+and the ``MjSpec`` builder (:mod:`roft_sim.scene.builder`; it and the articulated hand import
+MuJoCo: select the GL backend before importing them).
 
 Importing this package imports only the configuration dataclasses (no MuJoCo).
 """
 
 from roft_sim.scene.config import (
     BackgroundConfig,
+    CameraFileMotionConfig,
     CameraMotionConfig,
     CameraSwayConfig,
+    DistractorConfig,
+    FingerConfig,
     HandConfig,
+    HandMotionConfig,
+    ImageFormationConfig,
     LightConfig,
     RenderConfig,
     SceneConfig,
@@ -18,9 +25,14 @@ from roft_sim.scene.config import (
 
 __all__ = [
     "BackgroundConfig",
+    "CameraFileMotionConfig",
     "CameraMotionConfig",
     "CameraSwayConfig",
+    "DistractorConfig",
+    "FingerConfig",
     "HandConfig",
+    "HandMotionConfig",
+    "ImageFormationConfig",
     "LightConfig",
     "RenderConfig",
     "SceneConfig",

@@ -198,3 +198,25 @@ def open_renderer(scenario, *, trajectory=None, mesh=None, **kwargs):
         trajectory=trajectory if trajectory is not None else SinusoidalTrajectory(),
         **kwargs,
     )
+
+
+def textured_mesh_file(folder, name: str, mesh=None, texture_px: int = 32) -> str:
+    """Writes ``mesh`` (a trimesh mesh, default a 6 x 6 x 10 cm box) as ``<folder>/<name>.obj``
+    with its ``.mtl`` and a small PNG texture, so that ``roft_sim.assets.load_object`` uses the
+    file's texture instead of generating a procedural one (which takes seconds). Returns the
+    path."""
+    import cv2
+    import trimesh
+
+    mesh = mesh if mesh is not None else trimesh.creation.box(extents=(0.06, 0.06, 0.1))
+    uv = np.random.default_rng(0).uniform(size=(len(mesh.vertices), 2))
+    texture = procedural_texture("stone", texture_px, np.random.default_rng(1))
+    cv2.imwrite(str(folder / f"{name}.png"), texture[..., ::-1])
+    (folder / f"{name}.mtl").write_text(f"newmtl skin\nmap_Kd {name}.png\n")
+    lines = [f"mtllib {name}.mtl", "usemtl skin"]
+    lines += [f"v {x:.9f} {y:.9f} {z:.9f}" for x, y, z in mesh.vertices]
+    lines += [f"vt {u:.6f} {v:.6f}" for u, v in uv]
+    lines += [f"f {a}/{a} {b}/{b} {c}/{c}" for a, b, c in np.asarray(mesh.faces) + 1]
+    path = folder / f"{name}.obj"
+    path.write_text("\n".join(lines) + "\n")
+    return str(path)

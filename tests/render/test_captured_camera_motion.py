@@ -130,3 +130,52 @@ def test_background_flow_matches_reprojection_with_the_recorded_poses(tmp_path):
     err = np.linalg.norm(flow.flow_px[v, u] - expected, axis=1)
     assert np.median(np.linalg.norm(expected, axis=1)) > 0.5  # the background does move
     assert np.percentile(err, 99) < 0.02, f"p99 {np.percentile(err, 99):.4f} px"
+
+
+def test_a_relative_camera_file_resolves_against_the_scenario_file(tmp_path):
+    from roft_sim.scenario import load_scenario
+
+    (tmp_path / "sub").mkdir()
+    _write_tum(tmp_path / "sub" / "cam.txt")
+    (tmp_path / "sub" / "s.toml").write_text(
+        'name = "s"\nframes = 2\n[camera]\nwidth_px = 64\nheight_px = 48\nfx_px = 60.0\n'
+        "fy_px = 60.0\ncx_px = 31.5\ncy_px = 23.5\n"
+        '[camera.motion]\nkind = "file"\npath = "cam.txt"\nformat = "tum"\n'
+        'lowpass_hz = 10.0\n[object]\nname = "009_gelatin_box"\n[trajectory]\nkind = "synthetic"\n'
+    )
+    scenario = load_scenario(tmp_path / "sub" / "s.toml")
+    assert scenario.camera.motion.path == tmp_path / "sub" / "cam.txt"
+    poses = camera_poses(scenario.camera.motion, np.array([0.0, 1.0]))
+    np.testing.assert_allclose(poses.T_world_cam[0], np.eye(4), atol=1e-9)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "fmt,file,joint",
+    [("tum", "tum/dataset-room1_512_16.txt", None), ("bvh", "bvh/002_05.bvh", "CC_Base_Head")],
+)
+def test_real_captured_camera_motion_has_exact_velocities(
+    shared_trajectories_dir, fmt, file, joint
+):
+    """TUM VI room 1 (a hand-held rig) and a CMU mocap head, cleaned as the docs suggest: the
+    camera starts at rest, its twist is the derivative of its poses, and it stays near its rest
+    pose (drift removed)."""
+    config = CameraFileMotionConfig(
+        path=shared_trajectories_dir / file,
+        format=fmt,
+        joint=joint,
+        lowpass_hz=10.0,
+        remove_drift_window_s=2.0,
+        window_s=(2.0, 14.0),
+    )
+    t = np.linspace(0.5, 11.0, 30)
+    h = 1e-5
+    poses, plus, minus = (camera_poses(config, t + d) for d in (0.0, h, -h))
+    v_fd = (plus.T_world_cam[:, :3, 3] - minus.T_world_cam[:, :3, 3]) / (2 * h)
+    R_p, R_m = plus.T_world_cam[:, :3, :3], minus.T_world_cam[:, :3, :3]
+    w_fd = rotvec_from_matrix(R_p @ np.swapaxes(R_m, 1, 2)) / (2 * h)
+    np.testing.assert_allclose(poses.v_world_mps, v_fd, atol=1e-5)
+    np.testing.assert_allclose(poses.w_world_radps, w_fd, atol=1e-5)
+    np.testing.assert_allclose(camera_poses(config, 0.0).T_world_cam[0], np.eye(4), atol=1e-9)
+    assert np.linalg.norm(poses.T_world_cam[:, :3, 3], axis=1).max() < 0.5  # no walking away
+    assert np.linalg.norm(poses.w_world_radps, axis=1).max() > 0.05  # it does move

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from stand_ins import SinusoidalTrajectory, open_renderer, small_scenario
+from stand_ins import SinusoidalTrajectory, open_renderer, small_scenario, textured_mesh_file
 
 from roft_sim.errors import ConfigError
 from roft_sim.geometry import project_points, transform_points
@@ -26,10 +26,14 @@ def _scene(*distractors, table=True):
     )
 
 
-def test_resting_and_moving_distractors_have_their_own_ground_truth():
-    resting = DistractorConfig(name="009_gelatin_box", position_m=(-0.12, 0.6), yaw_rad=0.4)
+def test_resting_and_moving_distractors_have_their_own_ground_truth(tmp_path):
+    import trimesh
+
+    box = textured_mesh_file(tmp_path, "box", trimesh.creation.box(extents=(0.09, 0.03, 0.07)))
+    can = textured_mesh_file(tmp_path, "can", trimesh.creation.cylinder(radius=0.034, height=0.1))
+    resting = DistractorConfig(name=box, position_m=(-0.12, 0.6), yaw_rad=0.4)
     moving = DistractorConfig(
-        name="005_tomato_soup_can",
+        name=can,
         trajectory=SyntheticMotionConfig(seed=4, working_distance_m=(0.7, 0.9)),
     )
     scenario = small_scenario(scene=_scene(resting, moving))
@@ -37,7 +41,7 @@ def test_resting_and_moving_distractors_have_their_own_ground_truth():
         f0, f1 = r.render_frame(3), r.render_frame(4)
         meshes = [d.mesh for d in r.distractors]
     assert f0.body_names[-2:] == ("distractor0", "distractor1")
-    assert f0.distractor_names == ("009_gelatin_box", "005_tomato_soup_can")
+    assert f0.distractor_names == (box, can)
     # Resting: its lowest vertex lies on the table top (world y = height).
     T_world_d0 = f0.T_world_cam @ f0.T_cam_distractors[0]
     lowest = transform_points(T_world_d0, meshes[0].vertices_m)[:, 1].max()
@@ -66,3 +70,16 @@ def test_resting_and_moving_distractors_have_their_own_ground_truth():
 def test_a_resting_distractor_needs_the_table():
     with pytest.raises(ConfigError, match="rests on the table"):
         _scene(DistractorConfig(name="009_gelatin_box"), table=False)
+
+
+def test_relative_distractor_paths_resolve_against_the_scenario_file(tmp_path):
+    from roft_sim.scenario import load_scenario
+
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "s.toml").write_text(
+        'name = "s"\nframes = 2\n[camera]\nwidth_px = 64\nheight_px = 48\nfx_px = 60.0\n'
+        'fy_px = 60.0\ncx_px = 31.5\ncy_px = 23.5\n[object]\nname = "009_gelatin_box"\n'
+        '[trajectory]\nkind = "synthetic"\n[[scene.distractors]]\nname = "meshes/can.obj"\n'
+    )
+    scenario = load_scenario(tmp_path / "sub" / "s.toml")
+    assert scenario.scene.distractors[0].name == str(tmp_path / "sub" / "meshes" / "can.obj")
