@@ -200,10 +200,10 @@ def sequence_flow_errors(
         ConfigError: the sequence lacks one of the sets.
     """
     for name in (estimate_set, truth_set):
-        if name not in sequence.flow_sets:
+        if name not in sequence.flow_sets():
             raise ConfigError(
                 f"sequence {sequence.name!r} has no flow set {name!r}; it has "
-                f"{', '.join(sequence.flow_sets) or 'none'}"
+                f"{', '.join(sequence.flow_sets()) or 'none'}"
             )
     errors: dict[str, list[F64]] = {n: [] for n in FLOW_ERROR_CATEGORIES}
     truths: dict[str, list[F64]] = {n: [] for n in FLOW_ERROR_CATEGORIES}
@@ -213,7 +213,7 @@ def sequence_flow_errors(
         if est is None or gt is None:
             continue
         grey = cv2.cvtColor(sequence.rgb(k - 1), cv2.COLOR_RGB2GRAY)
-        mask = sequence.mask(k - 1, mask_set) if mask_set in sequence.mask_sets else None
+        mask = sequence.mask(k - 1, mask_set) if mask_set in sequence.mask_sets() else None
         _accumulate(est, gt, grey, mask, errors, truths, missing)
     return _summaries(errors, truths, missing)
 
