@@ -19,6 +19,7 @@ import dataclasses
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -326,7 +327,7 @@ def main(
         for name in paper["add_auc_pct"]
     }
     paths = {p.stem: p for p in preset_scenario_paths("fast-ycb")}
-    prefer = "procedural" if assets_dir is None else "ycb"
+    prefer: Literal["ycb", "procedural"] = "procedural" if assets_dir is None else "ycb"
     points = {
         n: np.asarray(load_object(n, assets_dir=assets_dir, prefer=prefer).model.model_points_m)
         for n in paths
