@@ -334,6 +334,7 @@ class SequenceGenerator:
                 visible,
                 nets.mask.segmenter,
                 self.scenario.rng(SEGMENTER_STREAM, k),
+                visible_fraction=vis,
             )
         return DatasetFrame(
             k=k,
@@ -385,7 +386,7 @@ class SequenceGenerator:
         vis[k] = vis_k
         sample = sample_pose_detections(
             self.track,
-            self.networks.pose.estimator,
+            self.networks.pose.estimator_for(self.scenario.object.name_or_path),
             self.scenario.rng(POSE_ESTIMATOR_STREAM),
             visible_fraction=vis,
         )

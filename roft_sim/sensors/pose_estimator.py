@@ -20,7 +20,8 @@ camera frame (docs/sensors.md):
   ``U[jump_min_m, jump_max_m]`` in a random direction with a random rotation of up to
   ``jump_rotation_max_rad``; the wrong solution persists for the episode;
 - misses with probability ``miss_probability + occlusion_miss_gain (1 - visible_fraction)``,
-  and always below ``min_visible_fraction``.
+  and always below ``min_visible_fraction``; with probability ``start_miss_probability`` the
+  sequence starts with a stretch of misses (mean ``start_miss_mean_frames``).
 
 The defaults are CALIBRATED so that, scored on every detected frame without delay (the
 reference's "DOPE (ideal)": misses are left out), Fast-YCB-like motions of the six objects give
@@ -30,6 +31,7 @@ numbers reached are in docs/sensors.md and ``tests/sensors/test_pose_estimator_c
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -51,6 +53,9 @@ __all__ = [
     "OUTLIER_FLIP",
     "sample_pose_detections",
     "simulate_pose_detections",
+    "FAST_YCB_DOPE",
+    "FAST_YCB_DOPE_BASE",
+    "HO3D_START_MISS_PROBABILITY",
 ]
 
 OUTLIER_NONE = 0
@@ -101,6 +106,15 @@ class PoseEstimatorConfig:
     """Added miss probability per unit of occluded fraction ``1 - visible_fraction``."""
     min_visible_fraction: float = 0.1
     """Below this visible fraction the object is never detected."""
+    start_miss_probability: float = 0.0
+    """Probability that the sequence starts with a whole stretch of misses (a detector that
+    does not lock on until the object has moved or turned; the reference scores from the
+    first valid detection on). The reference's own data show one: HO-3D
+    ``006_mustard_bottle_2`` has no valid DOPE pose for its first 72 frames
+    (``roft_reference.md`` §8.7)."""
+    start_miss_mean_frames: float = 72.0
+    """Mean length of that stretch [frames] (exponential, at least 1 frame); default the
+    HO-3D example's 72."""
 
     def __post_init__(self) -> None:
         owner = "PoseEstimatorConfig"
@@ -127,7 +141,12 @@ class PoseEstimatorConfig:
             value = getattr(self, name)
             if not 0 <= value < 1:
                 raise ConfigError(f"{owner}.{name} must be in [0, 1), got {value}")
-        for name in ("outlier_flip_share", "miss_probability", "min_visible_fraction"):
+        for name in (
+            "outlier_flip_share",
+            "miss_probability",
+            "min_visible_fraction",
+            "start_miss_probability",
+        ):
             value = getattr(self, name)
             if not 0 <= value <= 1:
                 raise ConfigError(f"{owner}.{name} must be in [0, 1], got {value}")
@@ -135,6 +154,11 @@ class PoseEstimatorConfig:
             raise ConfigError(
                 f"{owner}.outlier_mean_duration_frames must be >= 1, got "
                 f"{self.outlier_mean_duration_frames}"
+            )
+        if not (np.isfinite(self.start_miss_mean_frames) and self.start_miss_mean_frames >= 1):
+            raise ConfigError(
+                f"{owner}.start_miss_mean_frames must be a finite number >= 1, got "
+                f"{self.start_miss_mean_frames}"
             )
         if self.jump_max_m < self.jump_min_m:
             raise ConfigError(
@@ -252,6 +276,9 @@ def sample_pose_detections(
     jump_axis = _random_unit(rng, n_ep)
     jump_angle = rng.uniform(0.0, c.jump_rotation_max_rad, n_ep)
     miss_u = rng.random(n)
+    # Drawn last, so that the draws above are those of a config without the stretch.
+    start_u = rng.random()
+    start_len = 1 + int(np.floor(rng.exponential(c.start_miss_mean_frames - 1.0)))
 
     # Core errors.
     gain = 1.0 + c.visibility_error_gain * (1.0 - vis)
@@ -283,6 +310,8 @@ def sample_pose_detections(
     # Misses.
     p_miss = np.clip(c.miss_probability + c.occlusion_miss_gain * (1.0 - vis), 0.0, 1.0)
     valid = (miss_u >= p_miss) & (vis >= c.min_visible_fraction)
+    if start_u < c.start_miss_probability:
+        valid[:start_len] = False
 
     T_est = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
     T_est[valid, :3, :3] = R_est[valid]
@@ -309,3 +338,93 @@ def simulate_pose_detections(
         (N,) detections; ``valid`` False on a miss (written as seven zeros in Fast-YCB files).
     """
     return sample_pose_detections(gt, config, rng, visible_fraction=visible_fraction).detector_poses
+
+
+HO3D_START_MISS_PROBABILITY = 1.0 / 17.0
+"""One of the 17 HO-3D sequences the reference evaluates starts with a stretch of DOPE misses
+(``006_mustard_bottle_2``, 72 frames; ``roft_reference.md`` §8.7): the only published count."""
+
+FAST_YCB_DOPE_BASE: dict[str, PoseEstimatorConfig] = {
+    name: PoseEstimatorConfig(start_miss_probability=HO3D_START_MISS_PROBABILITY)
+    for name in (
+        "003_cracker_box",
+        "004_sugar_box",
+        "005_tomato_soup_can",
+        "006_mustard_bottle",
+        "010_potted_meat_can",
+    )
+} | {
+    # Table I's 34.4 cm RMSE with an ADD-AUC of 60 % cannot come from 0.1-1 m jumps (it would
+    # take 31 % of the frames, capping the AUC below 50 %): the gelatin box (the smallest box,
+    # 2.8 cm thick) gets rarer, far larger ones, as a keypoint detector that mis-scales a small
+    # object places it metres away. The range is an assumption; the fit sets the fraction.
+    "009_gelatin_box": PoseEstimatorConfig(
+        start_miss_probability=HO3D_START_MISS_PROBABILITY, jump_min_m=0.5, jump_max_m=3.0
+    ),
+}
+"""The per-object starting points of the Table I fit (:mod:`roft_sim.sensors.dope_calibration`):
+the pooled "DOPE (ideal)" calibration plus the stated assumptions."""
+
+FAST_YCB_DOPE: dict[str, PoseEstimatorConfig] = {
+    "003_cracker_box": dataclasses.replace(
+        FAST_YCB_DOPE_BASE["003_cracker_box"],
+        lateral_sigma_per_m=0.01144,
+        ray_sigma_per_m=0.02934,
+        ray_bias_per_m=0.006464,
+        rotation_sigma_rad=0.09696,
+        outlier_fraction=0.01567,
+        outlier_flip_share=0.9695,
+    ),
+    "004_sugar_box": dataclasses.replace(
+        FAST_YCB_DOPE_BASE["004_sugar_box"],
+        lateral_sigma_per_m=0.009641,
+        ray_sigma_per_m=0.02473,
+        ray_bias_per_m=0.005449,
+        rotation_sigma_rad=0.08174,
+        outlier_fraction=0.0294,
+        outlier_flip_share=0.9705,
+    ),
+    "005_tomato_soup_can": dataclasses.replace(
+        FAST_YCB_DOPE_BASE["005_tomato_soup_can"],
+        lateral_sigma_per_m=0.00829,
+        ray_sigma_per_m=0.02127,
+        ray_bias_per_m=0.004686,
+        rotation_sigma_rad=0.07028,
+        outlier_fraction=0.01388,
+        outlier_flip_share=0.9645,
+    ),
+    "006_mustard_bottle": dataclasses.replace(
+        FAST_YCB_DOPE_BASE["006_mustard_bottle"],
+        lateral_sigma_per_m=0.01113,
+        ray_sigma_per_m=0.02856,
+        ray_bias_per_m=0.006293,
+        rotation_sigma_rad=0.09439,
+        outlier_fraction=0.03928,
+        outlier_flip_share=0.6622,
+    ),
+    "009_gelatin_box": dataclasses.replace(
+        FAST_YCB_DOPE_BASE["009_gelatin_box"],
+        lateral_sigma_per_m=0.01109,
+        ray_sigma_per_m=0.02844,
+        ray_bias_per_m=0.006266,
+        rotation_sigma_rad=0.09399,
+        outlier_fraction=0.03325,
+        outlier_flip_share=0.3078,
+    ),
+    "010_potted_meat_can": dataclasses.replace(
+        FAST_YCB_DOPE_BASE["010_potted_meat_can"],
+        lateral_sigma_per_m=0.01319,
+        ray_sigma_per_m=0.03382,
+        ray_bias_per_m=0.007452,
+        rotation_sigma_rad=0.1118,
+        outlier_fraction=0.02457,
+        outlier_flip_share=0.7686,
+    ),
+}
+"""Per Fast-YCB object, the estimator fitted so that the reference's held 5 fps "DOPE" baseline
+reproduces the paper's Table I DOPE column (ADD-AUC, RMSE e_t, RMSE e_a) on the ``fast-ycb``
+preset's motion, trajectory seeds 0-9, real-mesh model points
+(:func:`roft_sim.sensors.dope_calibration.main`; the numbers reached: docs/sensors.md). Fitted:
+a common scale of the core errors, the jump and the flip fractions; the rest is
+:data:`FAST_YCB_DOPE_BASE`. Used by the generator for these objects
+(:meth:`roft_sim.sensors.networks.PoseSetConfig.estimator_for`)."""

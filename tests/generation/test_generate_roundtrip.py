@@ -112,11 +112,12 @@ def test_simulated_networks_equal_the_sensor_models_on_read_back_ground_truth(sc
         v_obj_mps=gt.v_obj_mps,
         w_radps=gt.w_radps,
     )
+    vis = visible_fractions(visible, full)
     want = simulate_pose_detections(
         track,
-        scenario.networks.pose.estimator,
+        scenario.networks.pose.estimator_for(scenario.object.name_or_path),
         scenario.rng("pose_estimator"),
-        visible_fraction=visible_fractions(visible, full),
+        visible_fraction=vis,
     )
     got = seq.detector_poses("dope")
     assert got.valid.sum() >= 2, "the test needs detections to compare"
@@ -127,7 +128,10 @@ def test_simulated_networks_equal_the_sensor_models_on_read_back_ground_truth(sc
     stored_masks = 0
     for k in range(n):
         mask = simulate_mask(
-            visible[k], scenario.networks.mask.segmenter, scenario.rng("segmenter", k)
+            visible[k],
+            scenario.networks.mask.segmenter,
+            scenario.rng("segmenter", k),
+            visible_fraction=float(vis[k]),
         )
         stored = seq.mask(k, "mrcnn_ycbv_bop_pbr")
         if mask is None:

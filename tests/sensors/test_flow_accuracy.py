@@ -72,3 +72,45 @@ def test_grid_estimates_are_read_as_consumers_read_them_and_pairs_must_match():
     other = FlowField(flow_px=truth.astype(np.float32), from_k=1, to_k=2)
     with pytest.raises(ConfigError, match="same frame pair"):
         flow_error_breakdown(other, _field(truth), grey)
+
+
+class _TwoFrames:
+    """The part of a Sequence that sequence_flow_errors reads: frames 0 and 1, one flow."""
+
+    name = "two_frames"
+
+    def __init__(self, estimate: np.ndarray, truth: np.ndarray, grey: np.ndarray) -> None:
+        self._flows = {
+            "est": FlowField(flow_px=estimate.astype(np.float32), from_k=0, to_k=1),
+            "gt": FlowField(flow_px=truth.astype(np.float32), from_k=0, to_k=1),
+        }
+        self._rgb = np.repeat(grey.astype(np.uint8)[..., None], 3, axis=2)
+
+    def __len__(self) -> int:
+        return 2
+
+    def flow_sets(self) -> tuple[str, ...]:
+        return tuple(self._flows)
+
+    def flow(self, k: int, flow_set: str) -> FlowField | None:
+        return self._flows[flow_set] if k == 1 else None
+
+    def rgb(self, k: int) -> np.ndarray:
+        return self._rgb
+
+    def mask_sets(self) -> tuple[str, ...]:
+        return ()
+
+
+def test_sequence_errors_pool_the_frame_pairs_and_name_missing_sets():
+    from roft_sim.sensors.flow_accuracy import sequence_flow_errors
+
+    truth, grey = _scene()
+    grey = np.round(grey)
+    estimate = truth + 0.5
+    seq = _TwoFrames(estimate, truth, grey)
+    pooled = sequence_flow_errors(seq, "est", "gt")  # type: ignore[arg-type]
+    single = flow_error_breakdown(_field(estimate), _field(truth), grey)
+    assert pooled == single
+    with pytest.raises(ConfigError, match="no flow set 'nvof_1_slow'"):
+        sequence_flow_errors(seq)  # type: ignore[arg-type]
