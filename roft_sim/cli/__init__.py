@@ -35,6 +35,7 @@ from roft_sim.cli import (
     sweep,
     trackers,
     trajectory,
+    view,
 )
 from roft_sim.errors import ConfigError, RoftSimError
 
@@ -55,6 +56,7 @@ VERBS: tuple[tuple[str, RegisterVerb], ...] = (
     ("run", run.register),
     ("sweep", sweep.register),
     ("report", report.register),
+    ("view", view.register),
     ("paper", paper.register),
     ("dataset", dataset.register),
     ("preview", preview.register),
