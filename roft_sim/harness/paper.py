@@ -21,6 +21,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from roft_sim.config_files import jsonable
 from roft_sim.datasets import open_sequence
 from roft_sim.datasets.atomic_files import atomic_write_text
@@ -655,23 +657,63 @@ class RowOrder:
     """Row keys from best to worst in the simulation."""
 
 
-def table4_order(results: dict[str, RowMetrics], paper: PaperTables) -> list[RowOrder]:
-    """Kendall's tau between the paper's and the simulated values of the nine ROFT rows of
-    Table IV (:data:`TABLE4_ORDER_ROWS`), per metric (ALL)."""
-    from scipy.stats import kendalltau
+def kendall_tau_b(x: Sequence[float], y: Sequence[float]) -> float:
+    """Kendall's rank correlation tau-b of two equally long sequences (ties in either count
+    as neither concordant nor discordant and shrink the denominator); NaN when one sequence is
+    constant."""
+    if len(x) != len(y):
+        raise ValueError(f"need sequences of equal length, got {len(x)} and {len(y)}")
+    concordant = discordant = ties_x = ties_y = 0
+    for i in range(len(x)):
+        for j in range(i + 1, len(x)):
+            dx, dy = x[i] - x[j], y[i] - y[j]
+            if dx == 0 and dy == 0:
+                continue
+            if dx == 0:
+                ties_x += 1
+            elif dy == 0:
+                ties_y += 1
+            elif (dx > 0) == (dy > 0):
+                concordant += 1
+            else:
+                discordant += 1
+    n_x = concordant + discordant + ties_x
+    n_y = concordant + discordant + ties_y
+    if n_x == 0 or n_y == 0:
+        return float("nan")
+    return (concordant - discordant) / float(np.sqrt(n_x * n_y))
 
+
+def table4_order(
+    results: dict[str, RowMetrics], paper: PaperTables, *, configuration: str = "roft"
+) -> list[RowOrder]:
+    """Kendall's tau between the paper's and the simulated values of the nine ROFT rows of
+    Table IV (:data:`TABLE4_ORDER_ROWS`), per metric (ALL).
+
+    Args:
+        results: per row key, the metrics.
+        paper: the published numbers.
+        configuration: the key of the configuration's plain ROFT row; its Table IV rows are that
+            key with the default rows' suffixes (``roft_reference`` -> ``roft_reference``,
+            ``roft_reference_gt_pose``, ``roft_reference_no_pose_sync``, ...). The orders name
+            the rows by their default keys.
+    """
     labels = {r.key: r.label for r in PAPER_ROWS}
+
+    def sim_key(default_key: str) -> str:
+        return configuration + default_key.removeprefix("roft")
+
     out = []
     for metric in ("add_auc_pct", "rmse_t_cm", "rmse_a_deg"):
         keys = [
             k
             for k in TABLE4_ORDER_ROWS
-            if _all(results, k, metric) is not None and labels[k] in paper.table4
+            if _all(results, sim_key(k), metric) is not None and labels[k] in paper.table4
         ]
         ref = [paper.table4[labels[k]][metric] for k in keys]
-        sim = [float(_all(results, k, metric)) for k in keys]  # type: ignore[arg-type]
+        sim = [float(_all(results, sim_key(k), metric)) for k in keys]  # type: ignore[arg-type]
         sign = -1.0 if metric == "add_auc_pct" else 1.0  # best first
-        tau = None if len(keys) < 3 else float(kendalltau(ref, sim).statistic)
+        tau = None if len(keys) < 3 else kendall_tau_b(ref, sim)
         out.append(
             RowOrder(
                 metric=metric,
@@ -791,13 +833,17 @@ def write_paper_tables(
     for title, (cols, trs) in side_by_side_tables(results, paper, entries).items():
         md += [f"### {title}", "", markdown_table(cols, trs)]
     md += ["## Table IV: order of the nine ROFT rows (Kendall tau, paper vs sim)", ""]
-    for order in table4_order(results, paper):
-        tau = "n/a" if order.kendall_tau is None else f"{order.kendall_tau:+.3f}"
-        md.append(
-            f"- {order.metric}: tau {tau} over {order.rows} rows; paper best to worst "
-            f"{', '.join(order.paper_order)}; sim {', '.join(order.sim_order)}"
-        )
-    md.append("")
+    for configuration in ("roft", "roft_reference"):
+        if configuration not in results:
+            continue
+        md.append(f"Configuration `{configuration}`:")
+        for order in table4_order(results, paper, configuration=configuration):
+            tau = "n/a" if order.kendall_tau is None else f"{order.kendall_tau:+.3f}"
+            md.append(
+                f"- {order.metric}: tau {tau} over {order.rows} rows; paper best to worst "
+                f"{', '.join(order.paper_order)}; sim {', '.join(order.sim_order)}"
+            )
+        md.append("")
     cols, trs = attribution_table(results)
     if trs:
         md += [

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from roft_sim.harness import paper as paper_module
@@ -82,3 +83,31 @@ def test_the_reference_row_is_a_paper_row_not_a_plugin_row(monkeypatch):
     keys = [r.key for r in paper_rows()]
     assert keys.count("roft_reference") == 1
     assert "plugin:roft-reference" not in keys
+
+
+def test_the_reference_configuration_gets_its_own_order():
+    default = _table4_as_results()
+    reference = {
+        "roft_reference" + key.removeprefix("roft"): value
+        for key, value in _table4_as_results(lambda k, m, v: -v if m == "rmse_t_cm" else v).items()
+        if key in TABLE4_ORDER_ROWS
+    }
+    results = default | reference
+    ref_orders = table4_order(results, paper_tables(), configuration="roft_reference")
+    assert [o.rows for o in ref_orders] == [9, 9, 9]
+    assert ref_orders[0].kendall_tau == pytest.approx(1.0)
+    assert ref_orders[1].kendall_tau == pytest.approx(-1.0)  # e_t reversed
+    assert table4_order(results, paper_tables())[1].kendall_tau == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_kendall_tau_b_equals_scipys(seed):
+    from scipy.stats import kendalltau
+
+    from roft_sim.harness.paper import kendall_tau_b
+
+    rng = np.random.default_rng(seed)
+    x = rng.integers(0, 5, 9).astype(float)  # with ties
+    y = rng.integers(0, 5, 9).astype(float)
+    assert kendall_tau_b(list(x), list(y)) == pytest.approx(kendalltau(x, y).statistic)
+    assert np.isnan(kendall_tau_b([1.0, 1.0, 1.0], [1.0, 2.0, 3.0]))
