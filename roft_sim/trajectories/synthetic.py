@@ -327,6 +327,101 @@ def _move_inside(
     return None
 
 
+_Segment = tuple[float, F64, F64]
+"""One minimum-jerk submovement: duration [s], displacement (3,) [m], rotation vector (3,) [rad]."""
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class _PrimitiveLimits:
+    """The speed and acceleration bounds every primitive of :func:`generate_synthetic_motion`
+    respects (SI units)."""
+
+    v_peak: float
+    w_peak: float
+    a_max: float
+    alpha_max: float
+
+    @classmethod
+    def of(cls, config: SyntheticMotionConfig) -> _PrimitiveLimits:
+        return cls(
+            v_peak=config.peak_linear_speed_mps,
+            w_peak=config.peak_angular_speed_radps,
+            a_max=config.peak_linear_acceleration_mps2,
+            alpha_max=float(np.radians(config.peak_angular_acceleration_dps2)),
+        )
+
+
+def _speed_fraction(config: SyntheticMotionConfig, forced: bool, rng: np.random.Generator) -> float:
+    """1 for the forced first reach and twist (they run at the targets), else a random fraction."""
+    return 1.0 if forced else float(rng.uniform(config.min_speed_fraction, 1.0))
+
+
+def _reach(
+    config: SyntheticMotionConfig,
+    lim: _PrimitiveLimits,
+    region: ViewRegion,
+    p: F64,
+    forced: bool,
+    rng: np.random.Generator,
+) -> list[_Segment]:
+    """A reach from ``p`` (with a little rotation), or nothing when no move fits the region."""
+    k, c_acc = MINIMUM_JERK_PEAK_FACTOR, MINIMUM_JERK_ACCELERATION_FACTOR
+    speed = _speed_fraction(config, forced, rng) * lim.v_peak
+    T = max(
+        float(rng.uniform(*config.submovement_duration_s)), config.shortest_segment_s(speed, 0.0)
+    )
+    move = _move_inside(region, p, speed * T / k, rng)
+    if move is None:
+        return []
+    T = k * float(np.linalg.norm(move)) / speed
+    turn_rate = rng.uniform(0.0, config.reach_rotation_fraction) * lim.w_peak
+    turn_rate = min(turn_rate, lim.alpha_max * T / c_acc)
+    return [(T, move, _random_unit(rng) * turn_rate * T / k)]
+
+
+def _twist(
+    config: SyntheticMotionConfig,
+    lim: _PrimitiveLimits,
+    region: ViewRegion,
+    p: F64,
+    forced: bool,
+    rng: np.random.Generator,
+) -> list[_Segment]:
+    """A rotation about a random axis, with a little drift of the position."""
+    k, c_acc = MINIMUM_JERK_PEAK_FACTOR, MINIMUM_JERK_ACCELERATION_FACTOR
+    turn_rate = _speed_fraction(config, forced, rng) * lim.w_peak
+    T = max(
+        float(rng.uniform(*config.submovement_duration_s)),
+        config.shortest_segment_s(0.0, turn_rate),
+    )
+    turn = _random_unit(rng) * turn_rate * T / k
+    drift_speed = rng.uniform(0.0, config.twist_translation_fraction) * lim.v_peak
+    drift_speed = min(drift_speed, lim.a_max * T / c_acc)
+    move = _move_inside(region, p, drift_speed * T / k, rng)
+    return [(T, np.zeros(3) if move is None else move, turn)]
+
+
+def _shake(
+    config: SyntheticMotionConfig,
+    lim: _PrimitiveLimits,
+    region: ViewRegion,
+    p: F64,
+    rng: np.random.Generator,
+) -> list[_Segment]:
+    """An even number of back-and-forth half-cycles (it returns to where it started)."""
+    k, c_acc = MINIMUM_JERK_PEAK_FACTOR, MINIMUM_JERK_ACCELERATION_FACTOR
+    half = 0.5 / float(rng.uniform(*config.shake_frequency_hz))
+    count = int(rng.integers(config.shake_half_cycles[0], config.shake_half_cycles[1] + 1))
+    count += count % 2
+    # a shake's half-cycles are short: its amplitude, not its duration, gives way
+    shake_speed = min(_speed_fraction(config, False, rng) * lim.v_peak, lim.a_max * half / c_acc)
+    shake_rate = min(_speed_fraction(config, False, rng) * lim.w_peak, lim.alpha_max * half / c_acc)
+    move = _move_inside(region, p, shake_speed * half / k, rng)
+    move = np.zeros(3) if move is None else move
+    turn = _random_unit(rng) * shake_rate * half / k
+    return [(half, sign * move, sign * turn) for sign in [1.0, -1.0] * (count // 2)]
+
+
 def generate_synthetic_motion(
     config: SyntheticMotionConfig, region: ViewRegion, rng: np.random.Generator
 ) -> MinimumJerkTrajectory:
@@ -341,12 +436,7 @@ def generate_synthetic_motion(
         A trajectory on ``[0, config.duration_s]`` whose peak linear and angular speeds equal
         the targets (the first reach and the first twist run at them).
     """
-    v_peak = config.peak_linear_speed_mps
-    w_peak = config.peak_angular_speed_radps
-    a_max = config.peak_linear_acceleration_mps2
-    alpha_max = float(np.radians(config.peak_angular_acceleration_dps2))
-    k = MINIMUM_JERK_PEAK_FACTOR
-    c_acc = MINIMUM_JERK_ACCELERATION_FACTOR
+    lim = _PrimitiveLimits.of(config)
     z_mid = 0.5 * (region.near_m + region.far_m)
     p = region.centre_at(z_mid)
     if not region.contains(p[None])[0]:
@@ -354,9 +444,7 @@ def generate_synthetic_motion(
     p_start = p.copy()
     q_start = rng.normal(size=4)
     q_start /= np.linalg.norm(q_start)
-    durations: list[float] = []
-    moves: list[F64] = []
-    turns: list[F64] = []
+    segments_done: list[_Segment] = []
     kinds: list[str] = []
     names = ("reach", "twist", "shake", "hold")
     weights = np.array(
@@ -364,50 +452,17 @@ def generate_synthetic_motion(
     )
     plan = [str(kind) for kind in rng.permutation(["reach", "twist"])]
     t = 0.0
-
-    def fraction(forced: bool) -> float:
-        return 1.0 if forced else float(rng.uniform(config.min_speed_fraction, 1.0))
-
     while True:
         forced = bool(plan)
         kind = plan.pop(0) if plan else str(rng.choice(names, p=weights / weights.sum()))
-        segments: list[tuple[float, F64, F64]] = []
         if kind == "reach":
-            speed = fraction(forced) * v_peak
-            T = max(
-                float(rng.uniform(*config.submovement_duration_s)),
-                config.shortest_segment_s(speed, 0.0),
-            )
-            move = _move_inside(region, p, speed * T / k, rng)
-            if move is not None:
-                T = k * float(np.linalg.norm(move)) / speed
-                turn_rate = rng.uniform(0.0, config.reach_rotation_fraction) * w_peak
-                turn_rate = min(turn_rate, alpha_max * T / c_acc)
-                segments.append((T, move, _random_unit(rng) * turn_rate * T / k))
+            segments = _reach(config, lim, region, p, forced, rng)
         elif kind == "twist":
-            turn_rate = fraction(forced) * w_peak
-            T = max(
-                float(rng.uniform(*config.submovement_duration_s)),
-                config.shortest_segment_s(0.0, turn_rate),
-            )
-            turn = _random_unit(rng) * turn_rate * T / k
-            drift_speed = rng.uniform(0.0, config.twist_translation_fraction) * v_peak
-            drift_speed = min(drift_speed, a_max * T / c_acc)
-            move = _move_inside(region, p, drift_speed * T / k, rng)
-            segments.append((T, np.zeros(3) if move is None else move, turn))
+            segments = _twist(config, lim, region, p, forced, rng)
         elif kind == "shake":
-            half = 0.5 / float(rng.uniform(*config.shake_frequency_hz))
-            count = int(rng.integers(config.shake_half_cycles[0], config.shake_half_cycles[1] + 1))
-            count += count % 2
-            # a shake's half-cycles are short: its amplitude, not its duration, gives way
-            shake_speed = min(fraction(False) * v_peak, a_max * half / c_acc)
-            shake_rate = min(fraction(False) * w_peak, alpha_max * half / c_acc)
-            move = _move_inside(region, p, shake_speed * half / k, rng)
-            move = np.zeros(3) if move is None else move
-            turn = _random_unit(rng) * shake_rate * half / k
-            segments.extend((half, sign * move, sign * turn) for sign in [1.0, -1.0] * (count // 2))
+            segments = _shake(config, lim, region, p, rng)
         else:
-            segments.append((float(rng.uniform(*config.hold_duration_s)), np.zeros(3), np.zeros(3)))
+            segments = [(float(rng.uniform(*config.hold_duration_s)), np.zeros(3), np.zeros(3))]
         total = sum(s[0] for s in segments)
         if t + total > config.duration_s - 1e-9:
             if forced:
@@ -416,23 +471,19 @@ def generate_synthetic_motion(
                     "twist at the speed targets; make it longer"
                 )
             break
-        for T, move, turn in segments:
-            durations.append(T)
-            moves.append(move)
-            turns.append(turn)
+        for segment in segments:
+            segments_done.append(segment)
             kinds.append(kind)
-            p = p + move
+            p = p + segment[1]
         t += total
-    durations.append(config.duration_s - t)
-    moves.append(np.zeros(3))
-    turns.append(np.zeros(3))
+    segments_done.append((config.duration_s - t, np.zeros(3), np.zeros(3)))
     kinds.append("hold")
     return MinimumJerkTrajectory(
-        durations_s=durations,
+        durations_s=[s[0] for s in segments_done],
         p_start_m=p_start,
         q_start_wxyz=q_start,
-        dp_m=np.array(moves),
-        rotvec_rad=np.array(turns),
+        dp_m=np.array([s[1] for s in segments_done]),
+        rotvec_rad=np.array([s[2] for s in segments_done]),
         kinds=tuple(kinds),
         end_s=config.duration_s,
     )
