@@ -153,11 +153,11 @@ def _deepest_m(renderer: SceneRenderer, points_obj: np.ndarray) -> float:
 
 
 def bench_clearance(assets: Path | None) -> None:
-    print("hand vs object surface (100 000 points), 3 seeds x 10 frames, 160x120:")
+    print("hand vs object surface (100 000 points), 3 seeds x 10 frames, 160x90:")
     for obj in OBJECTS:
         s = load_scenario(shipped_scenarios_dir() / "fast_ycb" / f"{obj}.toml")
         s = _with_hand(
-            ScenarioOverrides(frames=60, resolution=(160, 120)).apply(s), HandConfig(enabled=True)
+            ScenarioOverrides(frames=60, resolution=(160, 90)).apply(s), HandConfig(enabled=True)
         )
         worst = []
         for seed in range(3):
