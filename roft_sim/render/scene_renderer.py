@@ -229,6 +229,7 @@ class SceneRenderer:
         b = self.built
         assert b.hand is not None
         rng = scenario.rng("hand")
+        config = scenario.scene.hand
         grasp = synthesise_grasp(
             b.model,
             self._data,
@@ -236,8 +237,9 @@ class SceneRenderer:
             b.object_geom_id,
             b.object_mocap,
             b.object_half_extents_m,
-            scenario.scene.hand,
+            config,
             rng,
+            camera_dirs_obj=self._camera_dirs_obj() if config.side == "away_from_camera" else None,
         )
         duration_s = scenario.n_frames / scenario.fps
         return grasp, FingerMotion(scenario.scene.hand.motion, grasp, duration_s, rng)
@@ -356,6 +358,17 @@ class SceneRenderer:
             distractor_names=tuple(d.name for d in self.distractors),
             body_names=self._body_names,
         )
+
+    def _camera_dirs_obj(self) -> F64:
+        """(N, 3) unit directions from the object's origin to the camera at every frame, object
+        frame."""
+        t_s = np.arange(self.n_frames, dtype=np.float64) / self.scenario.fps
+        traj = self.trajectory
+        T_world_obj = traj.sample(np.clip(float(traj.start_s) + t_s, traj.start_s, traj.end_s))
+        T_world_cam = camera_poses(self.scenario.camera.motion, t_s).T_world_cam
+        T_obj_cam = invert_transform(T_world_obj.T_ref_obj) @ T_world_cam
+        p = T_obj_cam[:, :3, 3]
+        return p / np.maximum(np.linalg.norm(p, axis=1, keepdims=True), 1e-12)
 
     def _body_poses_cam(self, state: SceneState) -> F64:
         """(B, 4, 4) pose of every rigid body of :attr:`body_names` in the camera frame [m]: the

@@ -10,8 +10,10 @@ on hinges about its local x axis; a positive angle flexes the digit towards +z. 
 Grasp synthesis (:func:`synthesise_grasp`), in the object frame:
 
 1. a side is drawn: the palm's normal along one object axis ``a`` (the object's extent along it
-   must fit within the fingers' reach, when any axis does), the fingers along another axis
-   ``b``, the knuckle line near the object's edge along ``b``, a small random tilt;
+   must fit within the fingers' reach, when any axis does; with ``side = "away_from_camera"``
+   among the sides that face away from the camera over the sequence, as when a person holds an
+   object up to a camera), the fingers along another axis ``b``, the knuckle line near the
+   object's edge along ``b``, a small random tilt;
 2. the open hand approaches along its +z until its nearest geom is ``contact_gap_m`` from the
    object (:func:`mujoco.mj_geomDistance`);
 3. each digit closes joint by joint, proximal first: the joint flexes in 3 degree steps until a
@@ -207,15 +209,27 @@ def _all_geoms(hand: HandModel) -> tuple[int, ...]:
 
 
 def _draw_side(
-    half_extents_m: F64, reach_m: float, rng: np.random.Generator
+    half_extents_m: F64,
+    reach_m: float,
+    rng: np.random.Generator,
+    camera_dirs_obj: F64 | None = None,
 ) -> tuple[int, float, int, float]:
     """(palm axis a, its sign, finger axis b, its sign): the palm's normal lies along a, where
-    the object's extent fits within the fingers' reach when any axis does."""
+    the object's extent fits within the fingers' reach when any axis does. With
+    ``camera_dirs_obj`` (N, 3) (unit directions from the object to the camera over the
+    sequence, object frame), only the sides facing away from the camera are drawn from: those
+    whose mean ``-normal . direction`` is within 0.25 of the best side's."""
     fits = [a for a in range(3) if 2.0 * half_extents_m[a] <= reach_m]
     axes = fits if fits else [0, 1, 2]
-    a = int(rng.choice(axes))
+    sides = [(a, sign) for a in axes for sign in (-1.0, 1.0)]
+    if camera_dirs_obj is not None and len(camera_dirs_obj):
+        away = np.array([-sign * float(camera_dirs_obj[:, a].mean()) for a, sign in sides])
+        sides = [
+            side for side, score in zip(sides, away, strict=True) if score >= away.max() - 0.25
+        ]
+    a, sa = sides[int(rng.integers(len(sides)))]
     b = int(rng.choice([i for i in range(3) if i != a]))
-    return a, float(rng.choice([-1.0, 1.0])), b, float(rng.choice([-1.0, 1.0]))
+    return a, sa, b, float(rng.choice([-1.0, 1.0]))
 
 
 def synthesise_grasp(
@@ -227,6 +241,7 @@ def synthesise_grasp(
     half_extents_m: F64,
     config: HandConfig,
     rng: np.random.Generator,
+    camera_dirs_obj: F64 | None = None,
 ) -> HandGrasp:
     """Places the hand on a side of the object and closes its digits onto it (module doc).
 
@@ -240,6 +255,9 @@ def synthesise_grasp(
             object frame [m].
         config: the hand.
         rng: draws the side, the offsets and the tilt.
+        camera_dirs_obj: (N, 3) unit directions from the object to the camera over the sequence,
+            object frame; given, the palm goes on a side facing away from the camera
+            (``side = "away_from_camera"``). None: any side.
 
     Returns:
         The grasp; no hand geom is nearer the object than ``config.contact_gap_m`` minus the
@@ -250,7 +268,7 @@ def synthesise_grasp(
     data.mocap_quat[object_mocap] = [1.0, 0.0, 0.0, 0.0]
     data.qpos[:] = 0.0
     reach = 0.85 * float(sum(config.fingers[len(config.fingers) // 2].lengths_m))
-    a, sa, b, sb = _draw_side(e, reach, rng)
+    a, sa, b, sb = _draw_side(e, reach, rng, camera_dirs_obj)
     z_hand = np.zeros(3)
     z_hand[a] = -sa
     y_hand = np.zeros(3)

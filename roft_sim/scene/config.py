@@ -322,6 +322,10 @@ class HandConfig:
     glossy)."""
     contact_gap_m: float = 0.0003
     """Articulated: clearance at which a closing segment counts as touching the object [m]."""
+    side: Literal["away_from_camera", "random"] = "away_from_camera"
+    """Articulated: where the palm goes. ``away_from_camera``: on a side of the object that faces
+    away from the camera over the sequence (as a person holds an object up to a camera: the
+    fingers wrap round its edge); ``random``: any side whose extent fits the fingers' reach."""
     motion: HandMotionConfig = field(default_factory=HandMotionConfig)
     """Articulated: the fingers' motion during the sequence (``[scene.hand.motion]``)."""
 
@@ -343,6 +347,7 @@ class HandConfig:
                 f"hand.contact_gap_m must lie in (0, 0.001] m, got {self.contact_gap_m}"
             )
         _check_unit_interval("hand", skin_specular=self.skin_specular)
+        _check_choice("hand.side", self.side, ("away_from_camera", "random"))
         _check_choice("hand.palm_side", self.palm_side, ("+x", "-x", "+y", "-y", "+z", "-z"))
         _check_choice("hand.wrap_axis", self.wrap_axis, ("x", "y", "z"))
         _check_positive(

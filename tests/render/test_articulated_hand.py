@@ -10,6 +10,12 @@ import numpy as np
 import pytest
 from stand_ins import SinusoidalTrajectory, grid_box_mesh, open_renderer, small_scenario
 
+from roft_sim.geometry import (
+    backproject_pixels,
+    invert_transform,
+    project_points,
+    transform_points,
+)
 from roft_sim.render import ground_truth_flow
 from roft_sim.render.ground_truth import SEGMENT_HAND, SEGMENT_OBJECT
 from roft_sim.scene.config import (
@@ -108,26 +114,57 @@ def test_fingers_move_during_the_sequence_without_entering_the_object():
 
 def test_hand_has_its_own_segment_id_and_exact_flow_on_every_link():
     motion = HandMotionConfig(regrip_rate_hz=3.0, regrip_opening_rad=0.6)
-    scenario = small_scenario(seed=2, scene=_scene(HandConfig(enabled=True, motion=motion)))
+    hand_config = HandConfig(enabled=True, motion=motion, side="random")  # in view
+    scenario = small_scenario(seed=2, scene=_scene(hand_config), frames=30)
     trajectory = SinusoidalTrajectory(p0_m=(0.0, 0.0, 0.45), rot_amplitude_rad=0.3)
     with open_renderer(scenario, trajectory=trajectory) as r:
-        f0, f1 = r.render_frame(6), r.render_frame(8)
+        # The pair of frames (k, k + 2) across which the fingers move most (a re-grip).
+        angles = [r.finger_motion.planned_angles_rad(k / 30) for k in range(30)]
+        k = max(range(28), key=lambda i: np.abs(angles[i + 2] - angles[i]).max())
+        assert np.abs(angles[k + 2] - angles[k]).max() > 0.1
+        f0 = r.render_frame(k)
+        links0 = _link_poses_world(r)
+        f1 = r.render_frame(k + 2)
+        links1 = _link_poses_world(r)
     ids = f0.segment_ids()
     hand = ids == SEGMENT_HAND
     assert hand.sum() > 200 and (ids == SEGMENT_OBJECT).sum() > 200
     assert not (hand & f0.object_mask).any()
     assert (f0.body_index[hand] >= 2).all()
     flow = ground_truth_flow(f0, f1, scenario.intrinsics)
-    # Oracle: each valid hand pixel lands on the same link in the later frame (the links move
-    # differently; moving the hand as one rigid body would send finger pixels off their link).
-    h, w = f0.shape
-    yy, xx = np.mgrid[0:h, 0:w]
-    tx = np.rint(xx + flow.flow_px[..., 0]).astype(int).clip(0, w - 1)
-    ty = np.rint(yy + flow.flow_px[..., 1]).astype(int).clip(0, h - 1)
+    # Oracle: each hand pixel back-projected, carried by ITS link's MuJoCo poses (read from the
+    # simulator's data, by body name), projected into the later camera.
+    intr = scenario.intrinsics
     sel = flow.valid & hand
-    same = f1.body_index[ty, tx] == f0.body_index
-    assert sel.sum() > 150
-    assert same[sel].mean() > 0.97, f"only {same[sel].mean():.3f} land on their link"
+    v, u = np.nonzero(sel)
+    X_cam0 = backproject_pixels(intr, np.column_stack([u, v]).astype(float), f0.depth_m[v, u])
+    X_world0 = transform_points(f0.T_world_cam, X_cam0)
+    expected = np.empty((len(u), 2))
+    names = np.array(f0.body_names)[f0.body_index[v, u]]
+    for name in set(names):
+        rows = names == name
+        M = links1[name] @ invert_transform(links0[name])
+        X_cam1 = transform_points(invert_transform(f1.T_world_cam) @ M, X_world0[rows])
+        expected[rows] = project_points(intr, X_cam1)
+    err = np.linalg.norm(np.column_stack([u, v]) + flow.flow_px[v, u] - expected, axis=1)
+    assert sel.sum() > 150 and np.percentile(err, 99) < 0.01, np.percentile(err, 99)
+    # The same oracle tells a hand moved rigidly with its palm (the proxy's model) apart.
+    M_palm = links1["hand"] @ invert_transform(links0["hand"])
+    X_rigid = transform_points(invert_transform(f1.T_world_cam) @ M_palm, X_world0)
+    assert np.linalg.norm(project_points(intr, X_rigid) - expected, axis=1).max() > 0.5
+
+
+def _link_poses_world(renderer) -> dict[str, np.ndarray]:
+    """(4, 4) world pose of every hand link, read from MuJoCo's data by body name."""
+    m, d = renderer.model, renderer._data
+    out = {}
+    for name in renderer.body_names:
+        if name.startswith("hand"):
+            T = np.eye(4)
+            T[:3, :3] = d.xmat[m.body(name).id].reshape(3, 3)
+            T[:3, 3] = d.xpos[m.body(name).id]
+            out[name] = T
+    return out
 
 
 def test_proxy_kind_keeps_the_rigid_capsules():
@@ -166,3 +203,24 @@ def test_grasp_on_real_ycb_meshes_never_enters_them(name, shared_ycb_dir):
             r.render_frame(k)
             depth, _ = _depth_inside_hand(r, points)
             assert depth < PENETRATION_TOL_M, f"{name} frame {k}: {1000 * depth:.2f} mm inside"
+
+
+def _palm_facing_camera(r) -> float:
+    """Mean over the frames of (outward normal of the palm's object side) . (unit direction from
+    the object to the camera), object frame: < 0 = the palm is behind the object."""
+    outward = -r.grasp.T_obj_hand[:3, 2]  # the hand's +z points into the object
+    return float((r._camera_dirs_obj() @ outward).mean())
+
+
+def test_palm_goes_on_a_side_facing_away_from_the_camera():
+    mesh = grid_box_mesh(half_extents_m=(0.03, 0.03, 0.03), texture_px=64)  # every side fits
+    facing = {}
+    for side in ("away_from_camera", "random"):
+        facing[side] = []
+        for seed in range(6):
+            hand = HandConfig(enabled=True, side=side)
+            scenario = small_scenario(seed=seed, scene=_scene(hand), frames=30)
+            with open_renderer(scenario, mesh=mesh) as r:
+                facing[side].append(_palm_facing_camera(r))
+    assert max(facing["away_from_camera"]) < -0.3, facing
+    assert max(facing["random"]) > 0.3, facing  # a random side can face the camera

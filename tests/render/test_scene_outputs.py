@@ -39,7 +39,7 @@ def _scenario(tmp_path):
         scenario.scene,
         table=dataclasses.replace(scenario.scene.table, texture_px=64),
         background=dataclasses.replace(scenario.scene.background, texture_px=64),
-        hand=HandConfig(enabled=True),
+        hand=HandConfig(enabled=True, side="random"),  # a hand the camera sees
         distractors=(DistractorConfig(name=str(can), position_m=(0.2, 1.2)),),
     )
     box = textured_mesh_file(tmp_path, "box", trimesh.creation.box(extents=(0.06, 0.16, 0.21)))
