@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import cast
 
 import cv2
 import numpy as np
@@ -87,7 +88,7 @@ def flow_pixel_categories(
         texture_window_px: side of the texture window [px].
     """
     h, w = truth_px.shape[:2]
-    known = np.isfinite(truth_px).all(axis=2)
+    known = cast(Bool, np.isfinite(truth_px).all(axis=2))  # numpy types .all() as bool | array
     f = np.where(known[..., None], truth_px, 0.0)
     jump = np.zeros((h, w), dtype=bool)
     dx = np.linalg.norm(f[:, 1:] - f[:, :-1], axis=2) > 1.0
@@ -146,8 +147,8 @@ def _accumulate(
     h, w = np.asarray(grey).shape[:2]
     t = truth.dense(h, w).astype(np.float64)
     e = estimate.dense(h, w).astype(np.float64)
-    known = np.isfinite(t).all(axis=2)
-    have = np.isfinite(e).all(axis=2)
+    known = cast(Bool, np.isfinite(t).all(axis=2))  # numpy types .all() as bool | array
+    have = cast(Bool, np.isfinite(e).all(axis=2))
     epe = np.linalg.norm(e - t, axis=2)
     mag = np.linalg.norm(np.where(known[..., None], t, 0.0), axis=2)
     for name, cat in flow_pixel_categories(t, grey, object_mask).items():
@@ -199,11 +200,12 @@ def sequence_flow_errors(
     Raises:
         ConfigError: the sequence lacks one of the sets.
     """
+    flow_sets = sequence.flow_sets()
     for name in (estimate_set, truth_set):
-        if name not in sequence.flow_sets:
+        if name not in flow_sets:
             raise ConfigError(
                 f"sequence {sequence.name!r} has no flow set {name!r}; it has "
-                f"{', '.join(sequence.flow_sets) or 'none'}"
+                f"{', '.join(flow_sets) or 'none'}"
             )
     errors: dict[str, list[F64]] = {n: [] for n in FLOW_ERROR_CATEGORIES}
     truths: dict[str, list[F64]] = {n: [] for n in FLOW_ERROR_CATEGORIES}
@@ -213,7 +215,7 @@ def sequence_flow_errors(
         if est is None or gt is None:
             continue
         grey = cv2.cvtColor(sequence.rgb(k - 1), cv2.COLOR_RGB2GRAY)
-        mask = sequence.mask(k - 1, mask_set) if mask_set in sequence.mask_sets else None
+        mask = sequence.mask(k - 1, mask_set) if mask_set in sequence.mask_sets() else None
         _accumulate(est, gt, grey, mask, errors, truths, missing)
     return _summaries(errors, truths, missing)
 
