@@ -21,6 +21,7 @@ import logging
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from types import ModuleType
+from typing import cast
 
 import cv2
 import numpy as np
@@ -119,4 +120,5 @@ def _read_entry(png: Path, state_file: Path, rng: np.random.Generator) -> U8 | N
     if state.get("bit_generator") != rng.bit_generator.state["bit_generator"]:
         return None
     rng.bit_generator.state = state
-    return cv2.cvtColor(image, cv2.COLOR_BGR2RGB)
+    # IMREAD_COLOR gives 8-bit BGR; cv2 types its results as any dtype
+    return cast(U8, cv2.cvtColor(image, cv2.COLOR_BGR2RGB))

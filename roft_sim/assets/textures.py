@@ -179,16 +179,16 @@ def _label_blocks(
         bw, bh = rng.uniform(12.0, 55.0), rng.uniform(8.0, 35.0)
         x0, y0 = rng.uniform(-bw / 2, w / k), rng.uniform(-bh / 2, h / k)
         fill = palette[int(rng.choice(len(palette), p=weights))]
-        ink = dark if _luminance(fill) > 0.45 else light
-        fill = tuple(255.0 * float(c) for c in fill)
+        text_ink = dark if _luminance(fill) > 0.45 else light
+        fill_255 = tuple(255.0 * float(c) for c in fill)
         p0 = (round(x0 * k), round(y0 * k))
         p1 = (round((x0 + bw) * k), round((y0 + bh) * k))
-        cv2.rectangle(canvas, p0, p1, fill, thickness=-1)
-        cv2.rectangle(canvas, p0, p1, ink, thickness=max(1, round(0.6 * k)))
+        cv2.rectangle(canvas, p0, p1, fill_255, thickness=-1)
+        cv2.rectangle(canvas, p0, p1, text_ink, thickness=max(1, round(0.6 * k)))
         cap = float(rng.uniform(1.5, 4.0))
         y = y0 + 2.0 * cap
         while y < y0 + bh - 0.5 * cap:
-            _draw_text_line(canvas, rng, ((x0 + 1.5) * k, y * k), cap * k, (bw - 3.0) * k, ink)
+            _draw_text_line(canvas, rng, ((x0 + 1.5) * k, y * k), cap * k, (bw - 3.0) * k, text_ink)
             y += cap * float(rng.uniform(1.6, 2.2))
 
 
@@ -205,8 +205,10 @@ def _marks_and_dots(
         cap = float(rng.uniform(1.2, 7.0))
         x0, y0 = rng.uniform(-20.0, w / k), rng.uniform(0.0, h / k + cap)
         under = canvas[min(h - 1, max(0, round(y0 * k))), min(w - 1, max(0, round(x0 * k)))]
-        ink = dark if _luminance(under / 255.0) > 0.45 else light
-        _draw_text_line(canvas, rng, (x0 * k, y0 * k), cap * k, rng.uniform(10.0, 60.0) * k, ink)
+        mark_ink = dark if _luminance(under / 255.0) > 0.45 else light
+        _draw_text_line(
+            canvas, rng, (x0 * k, y0 * k), cap * k, rng.uniform(10.0, 60.0) * k, mark_ink
+        )
     n_dots = int(area_mm2 / 15.0)
     centres = np.stack([rng.uniform(0, w, n_dots), rng.uniform(0, h, n_dots)], axis=1)
     radii = rng.uniform(0.15, 0.9, n_dots) * k
@@ -225,7 +227,8 @@ def _shaded(canvas: U8, rng: np.random.Generator, k: float) -> U8:
     image *= (1.0 + 0.25 * shade)[..., None]
     image += (0.12 * fine)[..., None]
     image += rng.uniform(-0.03, 0.03, size=(h, w, 1)).astype(np.float32)
-    return np.clip(np.rint(image * 255.0), 0, 255).astype(np.uint8)
+    shaded: U8 = np.clip(np.rint(image * 255.0), 0, 255).astype(np.uint8)
+    return shaded
 
 
 def procedural_texture(

@@ -134,7 +134,8 @@ def _checked_png_chunks(data: bytes, path: str | Path, what: str) -> bytes:
 
 def encode_png_rgb(rgb: NDArray[np.uint8], *, level: int = PNG_COMPRESSION) -> bytes:
     """PNG bytes of an ``(H, W, 3)`` uint8 RGB image (stored as 8-bit colour), zlib ``level``."""
-    return _encode(cv2.cvtColor(np.ascontiguousarray(rgb), cv2.COLOR_RGB2BGR), level)
+    bgr = cast(NDArray[np.uint8], cv2.cvtColor(np.ascontiguousarray(rgb), cv2.COLOR_RGB2BGR))
+    return _encode(bgr, level)  # cv2 types its results as any dtype; uint8 in, uint8 out
 
 
 def decode_png_rgb(

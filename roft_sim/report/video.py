@@ -72,7 +72,7 @@ class VideoWriter:
             if self._writer is None:
                 code = "mp4v" if self._suffix == ".mp4" else "MJPG"
                 self._writer = cv2.VideoWriter(
-                    str(self.path), cv2.VideoWriter_fourcc(*code), self.fps, (w, h)
+                    str(self.path), cv2.VideoWriter.fourcc(*code), self.fps, (w, h)
                 )
                 if not self._writer.isOpened():
                     raise ConfigError(

@@ -199,11 +199,12 @@ def sequence_flow_errors(
     Raises:
         ConfigError: the sequence lacks one of the sets.
     """
+    flow_sets = sequence.flow_sets()
     for name in (estimate_set, truth_set):
-        if name not in sequence.flow_sets():
+        if name not in flow_sets:
             raise ConfigError(
                 f"sequence {sequence.name!r} has no flow set {name!r}; it has "
-                f"{', '.join(sequence.flow_sets()) or 'none'}"
+                f"{', '.join(flow_sets) or 'none'}"
             )
     errors: dict[str, list[F64]] = {n: [] for n in FLOW_ERROR_CATEGORIES}
     truths: dict[str, list[F64]] = {n: [] for n in FLOW_ERROR_CATEGORIES}

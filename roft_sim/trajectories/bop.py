@@ -80,7 +80,7 @@ def _followed_object(
     path: Path, entries: dict[int, list[dict[str, Any]]], object_id: int | None
 ) -> int:
     """The ``obj_id`` to follow: the one asked for, or the only one in the file."""
-    present = {a["obj_id"] for listed in entries.values() for a in listed}
+    present: set[int] = {a["obj_id"] for listed in entries.values() for a in listed}
     if object_id is None:
         if len(present) != 1:
             raise ConfigError(

@@ -302,7 +302,9 @@ def _bvh_lines(path: Path) -> list[str]:
         raise DatasetFormatError(f"{located(path)} is not a UTF-8 text file ({e})") from None
 
 
-def _bvh_hierarchy(path: Path, lines: list[str], motion_line: int) -> tuple[list[dict], int]:
+def _bvh_hierarchy(
+    path: Path, lines: list[str], motion_line: int
+) -> tuple[list[dict[str, Any]], int]:
     """The joints of the HIERARCHY section (one ROOT) and the number of MOTION columns."""
     tokens = _Tokens(path, lines, motion_line)
     tokens.expect("HIERARCHY")
@@ -388,7 +390,7 @@ def _bvh_motion_values(
 
 
 def _joints_in_metres(
-    path: Path, joints: list[dict], values: NDArray[np.float64], unit: BvhUnit
+    path: Path, joints: list[dict[str, Any]], values: NDArray[np.float64], unit: BvhUnit
 ) -> tuple[tuple[BvhJoint, ...], str]:
     """The joints with offsets in metres and the unit used (detected for ``"auto"``); scales
     the position channels of ``values`` in place."""

@@ -5,9 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from roft_sim.datasets.base import InMemorySequence
 from roft_sim.errors import ConfigError
+from roft_sim.geometry import CameraIntrinsics
 from roft_sim.records import FlowField
-from roft_sim.sensors.flow_accuracy import flow_error_breakdown, flow_pixel_categories
+from roft_sim.sensors.flow_accuracy import (
+    flow_error_breakdown,
+    flow_pixel_categories,
+    sequence_flow_errors,
+)
 
 H, W = 40, 60
 
@@ -114,3 +120,44 @@ def test_sequence_errors_pool_the_frame_pairs_and_name_missing_sets():
     assert pooled == single
     with pytest.raises(ConfigError, match="no flow set 'nvof_1_slow'"):
         sequence_flow_errors(seq)  # type: ignore[arg-type]
+
+
+def _pair(flow: np.ndarray, k: int) -> FlowField:
+    return FlowField(flow_px=flow.astype(np.float32), from_k=k - 1, to_k=k)
+
+
+def test_sequence_errors_pool_the_frames_and_use_the_stored_mask():
+    """Three frames: the estimate is 2 px off on frame pair 0->1 and 6 px off on 1->2, on the
+    right half only; the ground-truth masks cover that half, so ``object`` sees every error."""
+    truth = np.zeros((H, W, 2))
+    off_1, off_2 = truth.copy(), truth.copy()
+    off_1[:, 30:, 0] = 2.0
+    off_2[:, 30:, 1] = 6.0
+    mask = np.zeros((H, W), bool)
+    mask[:, 30:] = True
+    grey = np.random.default_rng(2).uniform(0, 255, (H, W)).astype(np.uint8)
+    sequence = InMemorySequence(
+        name="pooled",
+        object_name="none",
+        intrinsics=CameraIntrinsics(
+            fx_px=50.0, fy_px=50.0, cx_px=29.5, cy_px=19.5, width_px=W, height_px=H
+        ),
+        fps=30,
+        rgb_frames=[np.repeat(grey[..., None], 3, axis=2)] * 3,
+        depth_frames=[np.ones((H, W), np.float32)] * 3,
+        gt_masks=[mask] * 3,
+        flows={
+            "gt": [None, _pair(truth, 1), _pair(truth, 2)],
+            "estimate": [None, _pair(off_1, 1), _pair(off_2, 2)],
+        },
+    )
+    summary = sequence_flow_errors(sequence, "estimate", "gt")
+    assert summary["all"].pixels == 2 * H * W
+    assert summary["all"].mean_epe_px == pytest.approx((2.0 + 6.0) / 4)
+    assert summary["object"].pixels == 2 * H * 30
+    assert summary["object"].mean_epe_px == pytest.approx((2.0 + 6.0) / 2)
+    assert summary["object"].fl_pct == pytest.approx(50.0)  # only the 6 px pair is > 3 px
+    only_second = sequence_flow_errors(sequence, "estimate", "gt", frames=[2])
+    assert only_second["object"].mean_epe_px == pytest.approx(6.0)
+    with pytest.raises(ConfigError, match="no flow set 'nvof_1_slow'; it has gt, estimate"):
+        sequence_flow_errors(sequence, "nvof_1_slow", "gt")
