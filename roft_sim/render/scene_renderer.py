@@ -367,8 +367,9 @@ class SceneRenderer:
         T_world_obj = traj.sample(np.clip(float(traj.start_s) + t_s, traj.start_s, traj.end_s))
         T_world_cam = camera_poses(self.scenario.camera.motion, t_s).T_world_cam
         T_obj_cam = invert_transform(T_world_obj.T_ref_obj) @ T_world_cam
-        p = T_obj_cam[:, :3, 3]
-        return p / np.maximum(np.linalg.norm(p, axis=1, keepdims=True), 1e-12)
+        p: F64 = T_obj_cam[:, :3, 3]
+        dirs: F64 = p / np.maximum(np.linalg.norm(p, axis=1, keepdims=True), 1e-12)
+        return dirs
 
     def _body_poses_cam(self, state: SceneState) -> F64:
         """(B, 4, 4) pose of every rigid body of :attr:`body_names` in the camera frame [m]: the
