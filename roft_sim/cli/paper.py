@@ -34,8 +34,10 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         help="reproduce the ROFT paper's Fast-YCB tables (I, II, IV) in simulation",
         description="Generate (or reuse) the six Fast-YCB-like sequences, run the paper's rows "
         "(DOPE-like detector at 5 fps, DOPE ideal, ROFT, every Table IV ablation, ground-truth "
-        "input rows, other installed trackers) under the paper's delays, and write Tables I, II "
-        "and IV side by side with the published numbers, with a check of the paper's findings. "
+        "input rows, the same ROFT rows with the reference's settings, the attribution rows, "
+        "other installed trackers) under the paper's delays, and write Tables I, II and IV side "
+        "by side with the published numbers, an attribution table (reference, each deviation "
+        "added, default), and a check of the paper's findings. "
         "Resumable: finished frames and cells are kept. See docs/paper.md.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="examples:\n"
@@ -70,8 +72,8 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     parser.add_argument(
         "--rows",
         metavar="K1,K2",
-        help="only these rows (keys: roft, detector, detector_ideal, roft_no_pose_sync, ...; "
-        "default all)",
+        help="only these rows (keys: roft, detector, detector_ideal, roft_no_pose_sync, ..., "
+        "roft_reference, roft_reference_no_pose_sync, ..., attr_01_horizon, ...; default all)",
     )
     parser.add_argument(
         "--no-plugins", action="store_true", help="do not add the other installed trackers"

@@ -233,3 +233,37 @@ def test_process_noise_adapts_to_the_motion():
         q[name] = kf.q_diag[3:6]
     assert (q["moving"] > 0.02).all()
     np.testing.assert_allclose(q["still"], 0.1 * 0.01, rtol=1e-6)
+
+
+def test_midpoint_timing_reports_the_twist_at_the_frame():
+    """A twist changing linearly in time: the flow of (k-1, k] measures the twist at k - 1/2
+    exactly; with ``midpoint_timing`` the reported twist is the one at k, without it the one at
+    k - 1/2 (the reference)."""
+    rng = np.random.default_rng(6)
+    n, dt = 300, 1 / 30
+    u = rng.integers(0, CAM.width_px, n)
+    v = rng.integers(0, CAM.height_px, n)
+    J = flow_jacobian(CAM, u, v, rng.uniform(0.4, 1.5, n), dt)
+    rate = np.r_[0.3, -0.2, 0.1, 3.0, -2.0, 1.5]  # per second
+
+    def twist(t):
+        return np.r_[0.1, 0.0, -0.1, 0.5, 1.0, -0.5] + rate * t
+
+    out = {}
+    for mid in (True, False):
+        kf = VelocityKF(
+            VelocityKFConfig(
+                weight_flow=False,
+                midpoint_timing=mid,
+                cov_flow=(1e-6, 1e-6),
+                noise_reference_width_px=None,
+                sigma_linear=(10.0,) * 3,
+                sigma_angular=(10.0,) * 3,
+            )
+        )
+        for k in range(1, 6):
+            y = J @ twist((k - 0.5) * dt)
+            assert kf.step(FlowMeasurement(y_px=y, J=J, u_px=u, v_px=v), t_s=k * dt, dt_s=dt)
+        out[mid] = kf.x_frame
+    np.testing.assert_allclose(out[True], twist(5 * dt), atol=1e-6)
+    np.testing.assert_allclose(out[False], twist(4.5 * dt), atol=1e-6)

@@ -15,10 +15,13 @@ dropped. Differences from the reference (see docs/roft.md):
   does not exist here;
 - the pixel of a sub-pixel position is the nearest one by default (pixel centres are at integer
   coordinates); ``rounding = "truncate"`` gives the reference's C truncation;
-- by default the mask is cleaned up after every warp step by a 3x3 binary median
-  (``cleanup = "majority"``), which fills the holes splatting leaves where the object grows in
-  the image and removes points scattered by flow noise; the reference has no clean-up
-  (``cleanup = "none"``: chained tracking, rasterised once at the end);
+- by default the tracked points keep their sub-pixel positions from frame to frame
+  (:class:`TrackedPoints`, ``subpixel = true``) and the mask is closed on 3x3 neighbourhoods
+  after every step (``cleanup = "close"``), which fills the holes splatting leaves where the
+  object grows and never removes a pixel (the binary median, ``cleanup = "majority"``, removed
+  points scattered by flow noise until the mask collapsed); the reference re-warps the mask
+  image from integer pixels every frame with no clean-up (``subpixel = false``,
+  ``cleanup = "none"``);
 - a delayed mask is warped through the buffered flows from ITS capture frame to now (any delay,
   not the reference's fixed last six), and a mask older than the one in use is ignored.
 """

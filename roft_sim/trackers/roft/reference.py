@@ -211,11 +211,6 @@ DEVIATIONS: tuple[Deviation, ...] = (
         "the UKF integrates the pose with the new (interval-mean) velocity the flow measures",
         lambda c: _pose(c, integrate_interval_velocity=_DEFAULT.pose.integrate_interval_velocity),
     ),
-    Deviation(
-        "midpoint_timing",
-        "the reported twist is carried from k - 1/2 (what the flow measures) to k",
-        lambda c: _vel(c, midpoint_timing=_DEFAULT.velocity.midpoint_timing),
-    ),
 )
 """The deviations in the order the attribution table adds them; applying all of them to
 :func:`reference_config` gives ``RoftConfig()`` (tested)."""
