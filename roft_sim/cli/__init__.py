@@ -35,6 +35,7 @@ from roft_sim.cli import (
     sweep,
     trackers,
     trajectory,
+    view,
 )
 from roft_sim.errors import ConfigError, RoftSimError
 
@@ -56,6 +57,7 @@ VERBS: tuple[tuple[str, RegisterVerb], ...] = (
     ("sweep", sweep.register),
     ("report", report.register),
     ("paper", paper.register),
+    ("view", view.register),
     ("dataset", dataset.register),
     ("preview", preview.register),
     ("faults", faults.register),

@@ -13,8 +13,6 @@ from typing import Any
 
 __all__ = ["register", "has_display"]
 
-ORDER = 24
-
 
 def register(subparsers: Any) -> None:
     """Adds the ``view`` verb."""
