@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 import argparse
+import importlib
 import io
 import logging
+import pkgutil
 import subprocess
 import sys
 
 import pytest
 
+import roft_sim.cli
 from roft_sim.cli import VERBS, build_parser, main
 
 
@@ -25,6 +28,15 @@ def test_the_verb_table_names_every_sub_parser_in_help_order():
     (sub,) = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
     assert list(sub.choices) == [name for name, _ in VERBS]
     assert len(VERBS) == len({name for name, _ in VERBS}) >= 12
+
+
+def test_every_verb_module_is_in_the_verb_table():
+    """A module of roft_sim.cli with a ``register`` is a verb: it must be listed in VERBS."""
+    listed = {register.__module__ for _, register in VERBS}
+    for info in pkgutil.iter_modules(roft_sim.cli.__path__):
+        module = importlib.import_module(f"roft_sim.cli.{info.name}")
+        if hasattr(module, "register"):
+            assert module.__name__ in listed, module.__name__
 
 
 def test_logging_follows_the_current_stderr(monkeypatch):

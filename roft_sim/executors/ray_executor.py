@@ -201,12 +201,20 @@ class RayExecutor:
             if progress is not None:
                 drain_progress(progress.get_nowait, Empty, on_progress)
 
-        def unwrapped_result(ref: Any) -> Any:
-            """``ray.get(ref)``, with a task's exception raised as itself, not wrapped."""
+        def unwrapped_result(ref: Any, unit: Any) -> Any:
+            """``ray.get(ref)``, with a task's exception raised as itself, not wrapped, and a
+            dead actor as :func:`worker_died` (a RoftSimError, so :func:`unit_result` passes it
+            through instead of reporting it as the unit's own failure)."""
             try:
                 return ray.get(ref)
             except RayTaskError as e:
                 raise (e.cause if isinstance(e.cause, BaseException) else e) from None
+            except (RayActorError, WorkerCrashedError) as e:
+                first = (str(e).strip().splitlines() or [""])[0][:300]
+                detail = f"; Ray: {type(e).__name__}: {first}"
+                if self.max_restarts:
+                    detail += f"; Ray gave up after {self.max_restarts} restart(s)"
+                raise worker_died(unit, detail) from None
 
         options: dict[str, Any] = {
             "num_cpus": 1,
@@ -238,14 +246,7 @@ class RayExecutor:
                 for ref in ready:
                     unit, i = running.pop(ref)
                     load[i] -= 1
-                    try:
-                        result = unit_result(unit, functools.partial(unwrapped_result, ref))
-                    except (RayActorError, WorkerCrashedError) as e:
-                        first = (str(e).strip().splitlines() or [""])[0][:300]
-                        detail = f"; Ray: {type(e).__name__}: {first}"
-                        if self.max_restarts:
-                            detail += f"; Ray gave up after {self.max_restarts} restart(s)"
-                        raise worker_died(unit, detail) from None
+                    result = unit_result(unit, functools.partial(unwrapped_result, ref, unit))
                     yield unit, result
             drain()
         finally:
