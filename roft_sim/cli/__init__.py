@@ -58,7 +58,6 @@ VERBS: tuple[tuple[str, RegisterVerb], ...] = (
     ("report", report.register),
     ("view", view.register),
     ("paper", paper.register),
-    ("view", view.register),
     ("dataset", dataset.register),
     ("preview", preview.register),
     ("faults", faults.register),

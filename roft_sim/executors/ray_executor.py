@@ -24,6 +24,7 @@ from typing import Any, TypeVar
 from roft_sim.errors import ConfigError
 from roft_sim.executors.base import (
     WorkerSetup,
+    WorkUnitError,
     drain_progress,
     limit_worker_threads,
     progress_reporter,
@@ -205,16 +206,22 @@ class RayExecutor:
             """``ray.get(ref)``, with a task's exception raised as itself, not wrapped, and a
             dead actor as :func:`worker_died` (a RoftSimError, so :func:`unit_result` passes it
             through instead of reporting it as the unit's own failure)."""
+            death = (RayActorError, WorkerCrashedError)
             try:
                 return ray.get(ref)
+            except death as e:
+                raise died(unit, e) from None
             except RayTaskError as e:
-                raise (e.cause if isinstance(e.cause, BaseException) else e) from None
-            except (RayActorError, WorkerCrashedError) as e:
-                first = (str(e).strip().splitlines() or [""])[0][:300]
-                detail = f"; Ray: {type(e).__name__}: {first}"
-                if self.max_restarts:
-                    detail += f"; Ray gave up after {self.max_restarts} restart(s)"
-                raise worker_died(unit, detail) from None
+                cause = e.cause if isinstance(e.cause, BaseException) else e
+                # some Ray versions wrap a dead actor (ActorDiedError) in a task error
+                raise (died(unit, cause) if isinstance(cause, death) else cause) from None
+
+        def died(unit: Any, e: BaseException) -> WorkUnitError:
+            first = (str(e).strip().splitlines() or [""])[0][:300]
+            detail = f"; Ray: {type(e).__name__}: {first}"
+            if self.max_restarts:
+                detail += f"; Ray gave up after {self.max_restarts} restart(s)"
+            return worker_died(unit, detail)
 
         options: dict[str, Any] = {
             "num_cpus": 1,

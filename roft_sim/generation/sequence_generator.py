@@ -283,9 +283,17 @@ class SequenceGenerator:
             queued: deque[Future[DatasetFrame]] = deque()
             for k in range(start, stop):
                 current = self._renderer.render_frame(k)
-                full = self._full_silhouette(current)  # OpenGL: on this thread
+                # the silhouettes are OpenGL renders: on this thread
+                full = self._full_silhouette(current)
+                distractors = self._distractor_truths(current)
                 queued.append(
-                    networks.submit(self.dataset_frame, current, previous, full_silhouette=full)
+                    networks.submit(
+                        self.dataset_frame,
+                        current,
+                        previous,
+                        full_silhouette=full,
+                        distractors=distractors,
+                    )
                 )
                 previous = current
                 if len(queued) > 1:
@@ -299,10 +307,12 @@ class SequenceGenerator:
         previous: RenderedFrame | None,
         *,
         full_silhouette: Bool | None = None,
+        distractors: tuple[DistractorTruth, ...] | None = None,
     ) -> DatasetFrame:
         """The dataset frame of rendered frame ``current.k``; ``previous`` is frame k-1 (None
         only for k = 0). ``full_silhouette``: the (H, W) bool silhouette of the object alone
-        at frame k's pose, when already rendered (else it is rendered here)."""
+        at frame k's pose, and ``distractors``: the distractors' ground truth, when already
+        rendered (else they are rendered here, which must then be the OpenGL thread)."""
         k = current.k
         if k > 0 and (previous is None or previous.k != k - 1):
             raise ValueError(f"frame {k} needs the rendered frame {k - 1} for its flow")
@@ -351,7 +361,9 @@ class SequenceGenerator:
             detector_masks=masks,
             detector_poses=poses,
             gt_visible_fraction=vis,
-            gt_distractors=self._distractor_truths(current),
+            gt_distractors=(
+                self._distractor_truths(current) if distractors is None else distractors
+            ),
         )
 
     def _distractor_truths(self, frame: RenderedFrame) -> tuple[DistractorTruth, ...]:
