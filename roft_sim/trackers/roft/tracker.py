@@ -403,23 +403,7 @@ class RoftTracker:
         """Consumes camera frame ``observation.k`` and returns the estimate for it."""
         obs = observation
         k = obs.k
-        if self._last_k is not None and k <= self._last_k:
-            raise ValueError(
-                f"observations must come in increasing k; got k={k} after {self._last_k}"
-            )
-        if self._last_k is not None and k != self._last_k + 1:
-            raise ValueError(
-                f"observations must come without gaps in k; got k={k} after {self._last_k}. A "
-                "dropped camera frame must still be stepped, as an Observation with depth_m None"
-            )
-        if self._first_k is None:
-            self._first_k = k
-        fps = self._context.fps
-        dt = obs.t_s - self._last_t if self._last_t is not None else 1.0 / fps
-        if not (np.isfinite(dt) and dt > 0):
-            dt = (k - (self._last_k if self._last_k is not None else k - 1)) / fps
-        self._last_k, self._last_t = k, obs.t_s
-
+        dt = self._frame_interval_s(obs)
         cfg = self._config
         pixels: PixelSet | None = None
         mask_counts: dict[str, int] = {}
@@ -437,27 +421,9 @@ class RoftTracker:
         self._frames[k] = _Frame(dt_s=float(dt), twist=twist, twist_cov=twist_cov, samples=samples)
 
         new, dropped, dropped_ids = self._file_poses(k, obs.poses)
-        replay = 0
-        start = self._replay_start(k, new)
-        estimate_belief: PoseBelief | None = None
-        if start is not None:
-            j0, belief = start
-            for j in range(j0, k + 1):
-                belief = self._advance(j, belief)
-                self._beliefs[j] = belief
-                replay += 1
-            estimate_belief = belief
+        estimate_belief, replay = self._replay(k, new)
         self._prune(k)
-
-        for reason, n in dropped.items():
-            self._totals[f"poses_dropped_{reason}"] += n
-        accepted = tuple(p.detection_id for p in new if self._decisions.get(p.detection_id))
-        rejected = tuple(
-            p.detection_id for p in new if self._decisions.get(p.detection_id) is False
-        )
-        self._totals["poses_rejected"] += len(rejected)
-        gated = sum(1 for i in rejected if i in self._gated)
-        self._totals["poses_gated"] += gated
+        accepted, rejected, gated = self._count_decisions(new, dropped)
         diagnostics: dict[str, float | int | str] = {
             "flow_pixels": flow_pixels,
             "mask_pixels": len(pixels) if pixels is not None else 0,
@@ -493,6 +459,57 @@ class RoftTracker:
             dropped_pose_ids=tuple(dropped_ids),
             diagnostics=diagnostics,
         )
+
+    def _frame_interval_s(self, obs: Observation) -> float:
+        """Checks that frame ``obs.k`` follows the last one and returns the time since it [s]
+        (from the time stamps; from the frame count when a stamp is missing or not increasing)."""
+        k = obs.k
+        if self._last_k is not None and k <= self._last_k:
+            raise ValueError(
+                f"observations must come in increasing k; got k={k} after {self._last_k}"
+            )
+        if self._last_k is not None and k != self._last_k + 1:
+            raise ValueError(
+                f"observations must come without gaps in k; got k={k} after {self._last_k}. A "
+                "dropped camera frame must still be stepped, as an Observation with depth_m None"
+            )
+        if self._first_k is None:
+            self._first_k = k
+        fps = self._context.fps
+        dt = obs.t_s - self._last_t if self._last_t is not None else 1.0 / fps
+        if not (np.isfinite(dt) and dt > 0):
+            dt = (k - (self._last_k if self._last_k is not None else k - 1)) / fps
+        self._last_k, self._last_t = k, obs.t_s
+        return float(dt)
+
+    def _replay(self, k: int, new: list[_Pose]) -> tuple[PoseBelief | None, int]:
+        """Re-runs the pose filter from the earliest frame a new pose changes (or advances it
+        by frame k alone), storing every belief; returns frame k's belief (None before the
+        first pose) and the number of frames run."""
+        start = self._replay_start(k, new)
+        if start is None:
+            return None, 0
+        j0, belief = start
+        for j in range(j0, k + 1):
+            belief = self._advance(j, belief)
+            self._beliefs[j] = belief
+        return belief, k + 1 - j0
+
+    def _count_decisions(
+        self, new: list[_Pose], dropped: Counter[str]
+    ) -> tuple[tuple[int, ...], tuple[int, ...], int]:
+        """Adds this frame's dropped, rejected and gated poses to the totals; returns the ids
+        of the new poses accepted and rejected, and how many of the rejected the gate refused."""
+        for reason, n in dropped.items():
+            self._totals[f"poses_dropped_{reason}"] += n
+        accepted = tuple(p.detection_id for p in new if self._decisions.get(p.detection_id))
+        rejected = tuple(
+            p.detection_id for p in new if self._decisions.get(p.detection_id) is False
+        )
+        self._totals["poses_rejected"] += len(rejected)
+        gated = sum(1 for i in rejected if i in self._gated)
+        self._totals["poses_gated"] += gated
+        return accepted, rejected, gated
 
     def _prune(self, k: int) -> None:
         """Forgets what no pose within the horizon can need any more."""
