@@ -32,7 +32,6 @@ from roft_sim.trajectories import (
     TrajectoryConfig,
     resolve_hand_motion,
 )
-from roft_sim.trajectories.hand_motion import HandMotionSource
 
 __all__ = ["CameraConfig", "ObjectConfig", "Scenario", "load_scenario", "FAST_YCB_CAMERA_CONFIG"]
 
@@ -206,9 +205,7 @@ class Scenario:
         return np.random.default_rng(self.seed_sequence(subsystem, *index))
 
 
-def load_scenario(
-    path: str | Path, *, hand_motion_source: HandMotionSource | None = None
-) -> Scenario:
+def load_scenario(path: str | Path) -> Scenario:
     """Reads a scenario TOML file strictly.
 
     Relative paths in it (``[object] mesh``, ``[trajectory] path``, ``[camera.motion] path``, the
@@ -216,8 +213,6 @@ def load_scenario(
     stored absolute. A ``kind = "hand-motion"`` trajectory is resolved here too, into the motion
     it stands for (the captured file when present, else the fitted continuous profile; logged),
     so that the scenario, and the metadata of what it generates, say which motion was used.
-    ``hand_motion_source`` overrides that trajectory's ``source`` (e.g. ``"continuous"`` for a
-    result that does not depend on the shared captures being present).
 
     Raises:
         ConfigError: missing file, invalid TOML, unknown key, missing key or bad value; the
@@ -238,8 +233,6 @@ def load_scenario(
     if isinstance(trajectory, CapturedMotionConfig) and not trajectory.path.is_absolute():
         trajectory = dataclasses.replace(trajectory, path=base_dir / trajectory.path)
     if isinstance(trajectory, HandMotionConfig):  # captured when present, else fitted
-        if hand_motion_source is not None:
-            trajectory = dataclasses.replace(trajectory, source=hand_motion_source)
         trajectory, reason = resolve_hand_motion(trajectory.with_base_dir(base_dir))
         _log.info("%s: hand-motion trajectory: %s", path.name, reason)
     camera = scenario.camera

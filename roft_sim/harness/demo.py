@@ -2,11 +2,10 @@
 under the paper's delays with ROFT and baselines, and compare.
 
 Nothing beyond the installed package is needed: the object is the procedural stand-in of
-003_cracker_box (or the real YCB mesh when one is installed), the motion is the seeded continuous
-hand-held profile fitted to captured hand motion (the shipped Fast-YCB scenario's motion without
-the captures, so the result does not depend on ``../shared/trajectories``), and the simulated
-networks and flow are those of a generated dataset (DOPE-like poses and Mask R-CNN-like masks at
-5 fps, 6 frames late; the NVOF-like DIS flow stored with the dataset).
+003_cracker_box (or the real YCB mesh when one is installed), the motion is the seeded synthetic
+hand-like motion of the shipped Fast-YCB scenario, and the simulated networks and flow are those
+of a generated dataset (DOPE-like poses and Mask R-CNN-like masks at 5 fps, 6 frames late; the
+NVOF-like DIS flow stored with the dataset).
 """
 
 from __future__ import annotations
@@ -82,7 +81,7 @@ def run_demo(
     s = settings or DemoSettings()
     out = Path(out_dir)
     scenario_path = next(p for p in preset_scenario_paths("fast-ycb") if DEMO_OBJECT in p.name)
-    scenario = load_scenario(scenario_path, hand_motion_source="continuous")
+    scenario = load_scenario(scenario_path)
     dataset = out / "dataset"
     generate_dataset(
         [scenario],

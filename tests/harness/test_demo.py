@@ -22,9 +22,6 @@ def test_demo_generates_a_sequence_tracks_it_and_prints_the_comparison(tmp_path,
     sequence = out / "dataset" / "003_cracker_box"
     assert len(list((sequence / "rgb").glob("*.png"))) == 18
     assert (sequence / "dope" / "poses.txt").is_file()
-    # the embedded motion, whether or not ../shared/trajectories is there
-    metadata = (sequence / "metadata.json").read_text()
-    assert '"kind": "continuous"' in metadata and '"kind": "file"' not in metadata
     summary = json.loads((out / "summary.json").read_text())
     assert set(summary["metrics"]) == {"roft", "detector-hold"}
     for name in ("roft", "detector-hold"):
