@@ -13,7 +13,7 @@ from roft_sim.errors import ConfigError
 from roft_sim.scenario import Scenario, load_scenario
 from roft_sim.scene.config import CameraSwayConfig, HandConfig
 from roft_sim.sensors.depth_noise import NoDepthNoise, RealSenseDepthNoise
-from roft_sim.trajectories import CapturedMotionConfig, SyntheticMotionConfig
+from roft_sim.trajectories import SyntheticMotionConfig
 
 REPO = Path(__file__).resolve().parent.parent
 SHIPPED = sorted(  # scenario files: not the fault presets, not the sweep files
@@ -73,12 +73,10 @@ def test_fast_ycb_scenarios_use_the_fast_ycb_camera_and_fast_motion():
         assert k.fx_px == k.fy_px == pytest.approx(fov_fx_px, rel=1e-12)
         assert (k.cx_px, k.cy_px) == (640.0, 360.0)
         assert s.object.name == name and s.camera.motion is None
-        # kind = "hand-motion", resolved on load: captured TUM VI motion when
-        # ../shared/trajectories is present, else the fitted continuous profile
+        # kind = "hand-motion" with source = "bursty", resolved on load into the minimum-jerk
+        # motion the DOPE-like estimator is calibrated on, whether or not ../shared is there
         # (tests/trajectories/test_trajectory_continuous.py checks the file's other choices)
-        assert s.trajectory.kind in ("file", "continuous")
-        if isinstance(s.trajectory, CapturedMotionConfig):
-            assert s.trajectory.format == "tum" and s.trajectory.path.is_file()
+        assert isinstance(s.trajectory, SyntheticMotionConfig)
 
 
 def test_ci_scenarios_are_small_short_and_need_no_files():

@@ -137,7 +137,7 @@ def test_the_defaults_are_as_good_as_a_refit(shared_trajectories_dir: Path) -> N
 
 def test_hand_motion_falls_back_to_the_continuous_profile(tmp_path: Path) -> None:
     config = _hand_motion(preset_scenario_paths("fast-ycb")[0])
-    missing = dataclasses.replace(config, trajectories_dir=tmp_path)
+    missing = dataclasses.replace(config, source="auto", trajectories_dir=tmp_path)
     resolved, reason = resolve_hand_motion(missing)
     assert resolved == config.continuous and "absent" in reason
     with pytest.raises(ConfigError, match="missing"):
@@ -156,12 +156,14 @@ def test_hand_motion_bursty_reproduces_the_earlier_motion_exactly() -> None:
         np.testing.assert_array_equal(old.w_radps, new.w_radps)
 
 
-def test_fast_ycb_preset_replays_captured_motion_when_present(
+def test_fast_ycb_preset_auto_source_replays_captured_motion_when_present(
     shared_trajectories_dir: Path,
 ) -> None:
     for path in preset_scenario_paths("fast-ycb"):
         scenario = load_scenario(path)
-        config = dataclasses.replace(_hand_motion(path), trajectories_dir=shared_trajectories_dir)
+        config = dataclasses.replace(
+            _hand_motion(path), source="auto", trajectories_dir=shared_trajectories_dir
+        )
         trajectory = build_trajectory(config, scenario.intrinsics, object_radius_m=0.1)
         assert isinstance(trajectory, CapturedTrajectory)
         assert trajectory.end_s >= (scenario.n_frames - 1) / scenario.fps
@@ -170,13 +172,14 @@ def test_fast_ycb_preset_replays_captured_motion_when_present(
 
 def test_load_scenario_resolves_the_hand_motion(tmp_path: Path) -> None:
     text = preset_scenario_paths("fast-ycb")[0].read_text()
-    assert text.count('source = "auto"\n') == 1
+    assert text.count('source = "bursty"\n') == 1
     path = tmp_path / "scenario.toml"
     for replacement, expected in (
         ('source = "auto"\ntrajectories_dir = "absent"\n', ContinuousMotionConfig),
+        ('source = "continuous"\n', ContinuousMotionConfig),
         ('source = "bursty"\n', SyntheticMotionConfig),
     ):
-        path.write_text(text.replace('source = "auto"\n', replacement))
+        path.write_text(text.replace('source = "bursty"\n', replacement))
         assert isinstance(load_scenario(path).trajectory, expected)
 
 
