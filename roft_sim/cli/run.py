@@ -97,9 +97,10 @@ def add_input_arguments(parser: argparse.ArgumentParser, *, sweep: bool = False)
         parser.add_argument(
             "--invalid",
             default="failure",
-            choices=("failure", "exclude", "as_given"),
+            choices=("failure", "exclude", "as_given", "hold"),
             help="how frames without a tracker pose are scored (default failure: ADD = inf, "
-            "left out of the RMSEs; exclude: dropped)",
+            "left out of the RMSEs; exclude: dropped; hold: the reference's DOPE policy, frames "
+            "before the first pose left out, later gaps hold the last pose); the summary names it",
         )
     else:
         parser.add_argument(

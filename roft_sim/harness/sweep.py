@@ -63,7 +63,13 @@ from roft_sim.harness.options import InitPolicy, RunOptions
 from roft_sim.harness.outputs import DELIVERIES_FILE, load_deliveries
 from roft_sim.harness.robust_start import RobustStartConfig
 from roft_sim.harness.run_dataset import find_sequences
-from roft_sim.metrics import SequenceMetrics, concatenate_metrics, step_time_stats
+from roft_sim.metrics import (
+    InvalidPolicy,
+    SequenceMetrics,
+    concatenate_metrics,
+    policy_note,
+    step_time_stats,
+)
 from roft_sim.report.plotting import Panel, Series, line_figure, save_figure
 from roft_sim.report.tables import (
     ERROR_COLUMNS,
@@ -178,8 +184,9 @@ class SweepConfig:
     """Initial condition."""
     robust_start: RobustStartConfig = field(default_factory=RobustStartConfig)
     """Settings of ``init = "robust"`` (``[robust_start]``)."""
-    invalid: Literal["failure", "exclude", "as_given"] = "failure"
-    """How frames without a pose are scored."""
+    invalid: InvalidPolicy = "failure"
+    """How frames without a pose are scored: ``failure``, ``exclude``, ``as_given`` or ``hold``
+    (the reference's DOPE policy; docs/metrics.md). Every summary names it."""
     include_rgb: bool = True
     """Hand rgb images to the trackers."""
     extra: dict[str, Any] = field(default_factory=dict)
@@ -635,7 +642,9 @@ def write_summary(
         f"{len({c.options.seed for c in cells})} seeds. Metrics pooled over the frames of every "
         "sequence and seed (ALL)."
     )
-    md += ["", markdown_table(columns, rows)]
+    md += ["", markdown_table(columns, rows), ""]
+    md += [policy_note(p) for p in sorted({c.options.invalid for c in cells})]
+    md.append("")
     for p in written:
         md.append(f"![{p.stem}]({p.relative_to(out_dir).as_posix()})\n")
     atomic_write_text(out_dir / "summary.md", "\n".join(md))

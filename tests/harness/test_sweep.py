@@ -273,3 +273,16 @@ def test_flows_are_a_grid_dimension_with_their_own_summary_rows(
     assert "flow" in table_head
     with pytest.raises(ConfigError, match="flows lists a source twice"):
         _config(dataset, flows=("dis", "dis"))
+
+
+def test_a_sweep_scores_with_the_hold_policy_and_its_summary_names_the_policy(dataset, tmp_path):
+    failure = run_sweep(_config(dataset, trackers=("detector-hold",)), tmp_path / "f", plots=False)
+    hold = run_sweep(
+        _config(dataset, trackers=("detector-hold",), invalid="hold"), tmp_path / "h", plots=False
+    )
+    assert "invalid estimates: failure (" in (tmp_path / "f" / "summary.md").read_text()
+    assert "invalid estimates: hold (" in (tmp_path / "h" / "summary.md").read_text()
+    # every cell is scored under the sweep's policy (metrics/sequence.py's tests check the policy)
+    cells = sorted((tmp_path / "h" / CELLS_DIR).glob(f"*/{CELL_FILE}"))
+    assert cells and all('"invalid": "hold"' in c.read_text() for c in cells)
+    assert len(failure.summary_rows) == len(hold.summary_rows)
