@@ -25,7 +25,6 @@ import dataclasses
 import os
 import time
 from pathlib import Path
-from typing import Any
 
 from roft_sim.render.gl_backend import require_gl_backend
 
@@ -33,6 +32,7 @@ BACKEND = require_gl_backend(os.environ)  # before anything imports mujoco
 
 import numpy as np  # noqa: E402
 
+from roft_sim.assets import sample_surface_points  # noqa: E402
 from roft_sim.generation import ScenarioOverrides, shipped_scenarios_dir  # noqa: E402
 from roft_sim.generation.sequence_generator import SequenceGenerator  # noqa: E402
 from roft_sim.render import SceneRenderer  # noqa: E402
@@ -123,17 +123,6 @@ def bench_visibility(size: tuple[int, int], assets: Path | None) -> None:
         )
 
 
-def _surface_points(mesh: Any, count: int, rng: np.random.Generator) -> np.ndarray:
-    tri = np.asarray(mesh.vertices_m)[np.asarray(mesh.faces)]
-    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-    f = rng.choice(len(tri), count, p=area / area.sum())
-    u, v = rng.random((2, count))
-    flip = u + v > 1
-    u[flip], v[flip] = 1 - u[flip], 1 - v[flip]
-    t = tri[f]
-    return t[:, 0] + u[:, None] * (t[:, 1] - t[:, 0]) + v[:, None] * (t[:, 2] - t[:, 0])
-
-
 def _deepest_m(renderer: SceneRenderer, points_obj: np.ndarray) -> float:
     """Deepest surface point inside a hand geom [m] (negative: the smallest clearance)."""
     m, d, hand = renderer.model, renderer._data, renderer.built.hand
@@ -163,7 +152,8 @@ def bench_clearance(assets: Path | None) -> None:
         worst = []
         for seed in range(3):
             with SceneRenderer(dataclasses.replace(s, seed=seed), assets_dir=assets) as r:
-                points = _surface_points(r.object_assets.mesh, 100_000, np.random.default_rng(seed))
+                mesh = r.object_assets.mesh
+                points = sample_surface_points(mesh.vertices_m, mesh.faces, 100_000, seed=seed)
                 for k in range(0, 60, 6):
                     r.render_frame(k)
                     worst.append(_deepest_m(r, points))

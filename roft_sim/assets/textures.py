@@ -135,9 +135,13 @@ class _Inks:
     px_per_mm: float
     """Texels per millimetre of surface."""
     dark: Color
-    """The darkest palette colour (0-1 for the stripes, 0-255 once drawing on the canvas)."""
+    """The darkest palette colour, 0-1."""
     light: Color
-    """The lightest palette colour (same scale as ``dark``)."""
+    """The lightest palette colour, 0-1."""
+
+    def on_canvas(self) -> tuple[Color, Color]:
+        """``(dark, light)`` as 0-255 colours, for drawing on the uint8 canvas."""
+        return tuple(255.0 * c for c in self.dark), tuple(255.0 * c for c in self.light)
 
 
 def _stripe_bands(
@@ -172,7 +176,8 @@ def _label_blocks(
     ink: _Inks,
 ) -> None:
     """Step 4: label blocks with a border and text lines, drawn into ``canvas`` (0-255)."""
-    palette, weights, k, dark, light = ink.palette, ink.weights, ink.px_per_mm, ink.dark, ink.light
+    palette, weights, k = ink.palette, ink.weights, ink.px_per_mm
+    dark, light = ink.on_canvas()
     h, w = canvas.shape[:2]
     area_mm2 = (h / k) * (w / k)
     for _ in range(max(2, int(area_mm2 / 2500.0))):
@@ -198,7 +203,8 @@ def _marks_and_dots(
     ink: _Inks,
 ) -> None:
     """Steps 5 and 6a: text-like marks everywhere, then dots, drawn into ``canvas``."""
-    palette, weights, k, dark, light = ink.palette, ink.weights, ink.px_per_mm, ink.dark, ink.light
+    palette, weights, k = ink.palette, ink.weights, ink.px_per_mm
+    dark, light = ink.on_canvas()
     h, w = canvas.shape[:2]
     area_mm2 = (h / k) * (w / k)
     for _ in range(int(area_mm2 / 350.0)):
@@ -265,14 +271,10 @@ def procedural_texture(
     cuts = np.quantile(field[:: max(1, h // 256), :: max(1, w // 256)], np.cumsum(weights)[:-1])
     region = np.searchsorted(cuts, field).astype(np.intp)
     image = palette[region]
-    _stripe_bands(
-        image, rng, _Inks(palette=palette, weights=weights, px_per_mm=k, dark=dark, light=light)
-    )  # 3.
+    inks = _Inks(palette=palette, weights=weights, px_per_mm=k, dark=dark, light=light)
+    _stripe_bands(image, rng, inks)  # 3.
     # drawing (OpenCV's text needs 8-bit images): colours as 0-255 tuples from here on
     canvas = np.clip(np.rint(image * 255.0), 0, 255).astype(np.uint8)
-    dark = tuple(255.0 * c for c in dark)
-    light = tuple(255.0 * c for c in light)
-    inks = _Inks(palette=palette, weights=weights, px_per_mm=k, dark=dark, light=light)
     _label_blocks(canvas, rng, inks)  # 4.
     _marks_and_dots(canvas, rng, inks)  # 5., 6a.
     return _shaded(canvas, rng, k)  # 2., 6b.

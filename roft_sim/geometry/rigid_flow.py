@@ -50,29 +50,6 @@ def object_and_static_motions(
     return np.stack([M_static, M_obj])
 
 
-def _moved_points(
-    x: NDArray[np.float64],
-    y: NDArray[np.float64],
-    z: NDArray[np.float64],
-    body: NDArray[np.integer],
-    motions: NDArray[np.float64],
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """Points (P,) x, y, z in the earlier camera [m], each moved by its body's map
-    ``motions[body]`` (B, 4, 4) into the later camera. One rigid map per body (few bodies): no
-    per-pixel 4x4 matrices."""
-    x_to, y_to, z_to = np.empty_like(z), np.empty_like(z), np.empty_like(z)
-    for i in range(motions.shape[0]):
-        sel = body == i
-        if not sel.any():
-            continue
-        R, t = motions[i, :3, :3], motions[i, :3, 3]
-        xs, ys, zs = x[sel], y[sel], z[sel]
-        x_to[sel] = R[0, 0] * xs + R[0, 1] * ys + R[0, 2] * zs + t[0]
-        y_to[sel] = R[1, 0] * xs + R[1, 1] * ys + R[1, 2] * zs + t[1]
-        z_to[sel] = R[2, 0] * xs + R[2, 1] * ys + R[2, 2] * zs + t[2]
-    return x_to, y_to, z_to
-
-
 def rigid_flow(
     intrinsics: CameraIntrinsics,
     depth_from_m: ArrayLike,

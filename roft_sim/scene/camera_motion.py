@@ -19,14 +19,7 @@ from roft_sim.geometry import invert_transform, matrix_from_rotvec, skew
 from roft_sim.scene.config import CameraFileMotionConfig, CameraMotionConfig, CameraSwayConfig
 from roft_sim.trajectories.captured import read_pose_samples
 from roft_sim.trajectories.rigid_map import RigidlyMappedTrajectory
-from roft_sim.trajectories.samples import (
-    is_uniform,
-    lowpass_poses,
-    remove_position_drift,
-    resample_uniform,
-    scale_speed,
-    window_samples,
-)
+from roft_sim.trajectories.samples import clean_samples
 from roft_sim.trajectories.spline import SplinePoseTrajectory
 
 F64 = NDArray[np.float64]
@@ -102,10 +95,10 @@ def file_camera_trajectory(config: CameraFileMotionConfig) -> RigidlyMappedTraje
     """The captured camera motion as a trajectory ``T_world_cam(t)`` (cached per config: the
     renderer asks for one time per frame).
 
-    The file is read with :func:`roft_sim.trajectories.captured.read_pose_samples`, cleaned in
-    the order of captured object motion (uniform resampling when filtering, drift removal,
-    low-pass, window, speed) and replayed by a :class:`SplinePoseTrajectory` (exact
-    derivatives); the anchoring is the rigid map of :class:`CameraFileMotionConfig`.
+    The file is read with :func:`roft_sim.trajectories.captured.read_pose_samples`, cleaned as
+    captured object motion is (:func:`roft_sim.trajectories.samples.clean_samples`) and
+    replayed by a :class:`SplinePoseTrajectory` (exact derivatives); the anchoring is the rigid
+    map of :class:`CameraFileMotionConfig`.
 
     Raises:
         DatasetFormatError: a malformed file.
@@ -118,15 +111,13 @@ def file_camera_trajectory(config: CameraFileMotionConfig) -> RigidlyMappedTraje
         relative_to=config.relative_to,
         bvh_unit=config.bvh_unit,
     )
-    if (config.lowpass_hz or config.remove_drift_window_s) and not is_uniform(samples):
-        samples = resample_uniform(samples)
-    if config.remove_drift_window_s:
-        samples = remove_position_drift(samples, config.remove_drift_window_s)
-    if config.lowpass_hz:
-        samples = lowpass_poses(samples, config.lowpass_hz)
-    if config.window_s is not None:
-        samples = window_samples(samples, *config.window_s)
-    samples = scale_speed(samples, config.speed_scale)
+    samples, _ = clean_samples(
+        samples,
+        lowpass_hz=config.lowpass_hz,
+        remove_drift_window_s=config.remove_drift_window_s,
+        window_s=config.window_s,
+        speed_scale=config.speed_scale,
+    )
     spline = SplinePoseTrajectory(samples.t_s, samples.T_ref_obj)
     T_body_cam = config.camera_in_body.T_hand_obj
     T_ref_cam0 = spline.sample(np.array([spline.start_s])).T_ref_obj[0] @ T_body_cam

@@ -35,16 +35,7 @@ from roft_sim.trajectories.placement import (
     up_vector,
 )
 from roft_sim.trajectories.rigid_map import RigidlyMappedTrajectory
-from roft_sim.trajectories.samples import (
-    PoseSamples,
-    find_gaps,
-    is_uniform,
-    lowpass_poses,
-    remove_position_drift,
-    resample_uniform,
-    scale_speed,
-    window_samples,
-)
+from roft_sim.trajectories.samples import PoseSamples, clean_samples, find_gaps
 from roft_sim.trajectories.spline import SplinePoseTrajectory
 from roft_sim.trajectories.trajectory_csv import csv_pose_samples
 from roft_sim.trajectories.tum import read_tum
@@ -265,26 +256,6 @@ def _bridged_intervals(
     return tuple(out)
 
 
-def _cleaned_samples(
-    config: CapturedMotionConfig, samples: PoseSamples
-) -> tuple[PoseSamples, float]:
-    """Resampling (when filtering needs uniform samples), drift removal, low-pass, the time
-    window and the speed scale, in that order; also the window's start shift [s]."""
-    if (config.lowpass_hz or config.remove_drift_window_s) and not is_uniform(samples):
-        samples = resample_uniform(samples)
-    if config.remove_drift_window_s:
-        samples = remove_position_drift(samples, config.remove_drift_window_s)
-    if config.lowpass_hz:
-        samples = lowpass_poses(samples, config.lowpass_hz)
-    shift = 0.0
-    if config.window_s is not None:
-        start, end = config.window_s
-        kept = samples.t_s[samples.t_s >= start - 1e-9]
-        shift = float(kept[0]) if kept.size else 0.0
-        samples = window_samples(samples, start, end)
-    return scale_speed(samples, config.speed_scale), shift
-
-
 def _camera_placement(
     config: CapturedMotionConfig,
     samples: PoseSamples,
@@ -344,7 +315,13 @@ def build_captured_trajectory(
         sample_rate_hz=config.sample_rate_hz,
     )
     gaps = find_gaps(samples.t_s)
-    samples, shift = _cleaned_samples(config, samples)
+    samples, shift = clean_samples(
+        samples,
+        lowpass_hz=config.lowpass_hz,
+        remove_drift_window_s=config.remove_drift_window_s,
+        window_s=config.window_s,
+        speed_scale=config.speed_scale,
+    )
     spline = SplinePoseTrajectory(samples.t_s, samples.T_ref_obj)
     step = float(np.median(np.diff(samples.t_s))) * config.speed_scale
     margin = max(1.0 / config.lowpass_hz if config.lowpass_hz else 0.0, step)

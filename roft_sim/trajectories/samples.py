@@ -3,7 +3,8 @@
 Every importer returns :class:`PoseSamples`. The clean-up steps are pure functions on them:
 :func:`resample_uniform` (filters need a uniform rate; captured data has gaps),
 :func:`remove_position_drift` (walking), :func:`lowpass_poses` (zero-phase Butterworth on the
-position and the sign-aligned quaternions), :func:`window_samples` and :func:`scale_speed`.
+position and the sign-aligned quaternions), :func:`window_samples` and :func:`scale_speed`;
+:func:`clean_samples` applies them in that order.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ __all__ = [
     "window_samples",
     "scale_speed",
     "is_uniform",
+    "clean_samples",
     "LOWPASS_ORDER",
 ]
 
@@ -222,3 +224,36 @@ def scale_speed(samples: PoseSamples, speed_scale: float) -> PoseSamples:
     if speed_scale == 1.0:
         return samples
     return replace(samples, t_s=samples.t_s / speed_scale)
+
+
+def clean_samples(
+    samples: PoseSamples,
+    *,
+    lowpass_hz: float | None,
+    remove_drift_window_s: float | None,
+    window_s: tuple[float, float] | None,
+    speed_scale: float,
+) -> tuple[PoseSamples, float]:
+    """Resampling (when filtering needs uniform samples), drift removal, low-pass, the time
+    window and the speed scale, in that order (each step skipped when its setting is None).
+
+    Returns:
+        The cleaned samples and the window's start shift [s]: the time of the first kept sample
+        before windowing (0 without a window).
+
+    Raises:
+        ConfigError: a setting that does not suit the samples (see each step).
+    """
+    if (lowpass_hz or remove_drift_window_s) and not is_uniform(samples):
+        samples = resample_uniform(samples)
+    if remove_drift_window_s:
+        samples = remove_position_drift(samples, remove_drift_window_s)
+    if lowpass_hz:
+        samples = lowpass_poses(samples, lowpass_hz)
+    shift = 0.0
+    if window_s is not None:
+        start, end = window_s
+        kept = samples.t_s[samples.t_s >= start - 1e-9]
+        shift = float(kept[0]) if kept.size else 0.0
+        samples = window_samples(samples, start, end)
+    return scale_speed(samples, speed_scale), shift

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from stand_ins import SinusoidalTrajectory, grid_box_mesh, open_renderer, small_scenario
 
+from roft_sim.assets import sample_surface_points
 from roft_sim.geometry import (
     backproject_pixels,
     invert_transform,
@@ -37,18 +38,6 @@ def _scene(hand: HandConfig) -> SceneConfig:
         background=BackgroundConfig(texture_px=64, distance_m=1.2),
         hand=hand,
     )
-
-
-def _surface_points(mesh, count: int, rng) -> np.ndarray:
-    """Points drawn uniformly on the mesh surface, object frame (N, 3) [m]."""
-    tri = mesh.vertices_m[mesh.faces]
-    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-    f = rng.choice(len(tri), count, p=area / area.sum())
-    u, v = rng.random((2, count))
-    flip = u + v > 1
-    u[flip], v[flip] = 1 - u[flip], 1 - v[flip]
-    t = tri[f]
-    return t[:, 0] + u[:, None] * (t[:, 1] - t[:, 0]) + v[:, None] * (t[:, 2] - t[:, 0])
 
 
 def _depth_inside_hand(renderer, points_obj: np.ndarray) -> tuple[float, float]:
@@ -82,7 +71,7 @@ def test_grasp_touches_the_mesh_without_entering_it(seed):
     with open_renderer(scenario, mesh=mesh) as r:
         r.render_frame(0)
         assert r.grasp is not None and sum(r.grasp.in_contact) >= 3, r.grasp.in_contact
-        points = _surface_points(mesh, 60000, np.random.default_rng(seed))
+        points = sample_surface_points(mesh.vertices_m, mesh.faces, 60000, seed=seed)
         depth, clearance = _depth_inside_hand(r, points)
         assert depth < PENETRATION_TOL_M, f"hand enters the object by {1000 * depth:.2f} mm"
         # It touches: some surface point lies within 1 mm of a segment (sampling: 0.5 mm).
@@ -100,7 +89,7 @@ def test_fingers_move_during_the_sequence_without_entering_the_object():
     scenario = small_scenario(
         seed=5, scene=_scene(HandConfig(enabled=True, motion=motion)), frames=30
     )
-    points = _surface_points(mesh, 30000, np.random.default_rng(0))
+    points = sample_surface_points(mesh.vertices_m, mesh.faces, 30000, seed=0)
     angles = []
     with open_renderer(scenario, mesh=mesh, trajectory=SinusoidalTrajectory()) as r:
         for k in range(0, 30, 3):
@@ -196,7 +185,7 @@ def test_grasp_on_real_ycb_meshes_never_enters_them(name, shared_ycb_dir):
     mesh = load_object(name, assets_dir=shared_ycb_dir, prefer="ycb").mesh
     motion = HandMotionConfig(regrip_rate_hz=2.0, flexion_jitter_rad=0.15)
     scenario = small_scenario(seed=7, scene=_scene(HandConfig(enabled=True, motion=motion)))
-    points = _surface_points(mesh, 60000, np.random.default_rng(1))
+    points = sample_surface_points(mesh.vertices_m, mesh.faces, 60000, seed=1)
     with open_renderer(scenario, mesh=mesh) as r:
         assert sum(r.grasp.in_contact) >= 2, r.grasp.in_contact
         for k in (0, 4, 8, 11):
