@@ -172,6 +172,20 @@ def _bbox(mask: Bool) -> list[int]:
     return [int(cols[0]), int(rows[0]), int(cols[-1] - cols[0]), int(rows[-1] - rows[0])]
 
 
+def _gt_info(full: Bool, visib: Bool, depth_m: F32) -> dict[str, Any]:
+    """One ``scene_gt_info.json`` entry of an instance: its full silhouette ``full`` and visible
+    pixels ``visib``, both (H, W) bool; ``depth_m`` (H, W) the frame's depth [m], 0 = no return."""
+    n_all, n_visib = int(full.sum()), int(visib.sum())
+    return {
+        "bbox_obj": _bbox(full),
+        "bbox_visib": _bbox(visib),
+        "px_count_all": n_all,
+        "px_count_valid": int((full & (depth_m > 0)).sum()),
+        "px_count_visib": n_visib,
+        "visib_fract": n_visib / n_all if n_all else 0.0,
+    }
+
+
 def read_scene_names(root: str | Path) -> dict[str, str]:
     """``<root>/scene_names.json`` (scene folder -> sequence name); empty when absent.
 
@@ -339,15 +353,7 @@ class BopWriter(FolderWriter):
             atomic_write_bytes(
                 f"{seq}/mask_visib/{k:06d}_000000.png", encode_png_mask(frame.gt_mask, level=png)
             )
-            n_all, n_visib = int(full.sum()), int(frame.gt_mask.sum())
-            extra["gt_info"] = {
-                "bbox_obj": _bbox(full),
-                "bbox_visib": _bbox(frame.gt_mask),
-                "px_count_all": n_all,
-                "px_count_valid": int((full & (frame.depth_m > 0)).sum()),
-                "px_count_visib": n_visib,
-                "visib_fract": n_visib / n_all if n_all else 0.0,
-            }
+            extra["gt_info"] = _gt_info(full, frame.gt_mask, frame.depth_m)
         if frame.gt_distractors:
             extra["distractors"] = self._write_distractors(frame)
         for name, flow in frame.flows.items():
@@ -378,19 +384,11 @@ class BopWriter(FolderWriter):
             full = d.mask_full if d.mask_full is not None else d.mask
             atomic_write_bytes(f"{seq}/mask/{k:06d}_{i:06d}.png", encode_png_mask(full))
             atomic_write_bytes(f"{seq}/mask_visib/{k:06d}_{i:06d}.png", encode_png_mask(d.mask))
-            n_all, n_visib = int(full.sum()), int(d.mask.sum())
             R, t = _r_t_mm(d.T_cam_obj)
             out.append(
                 {
                     "gt": {"cam_R_m2c": R, "cam_t_m2c": t, "obj_id": bop_obj_id(d.name)},
-                    "gt_info": {
-                        "bbox_obj": _bbox(full),
-                        "bbox_visib": _bbox(d.mask),
-                        "px_count_all": n_all,
-                        "px_count_valid": int((full & (frame.depth_m > 0)).sum()),
-                        "px_count_visib": n_visib,
-                        "visib_fract": n_visib / n_all if n_all else 0.0,
-                    },
+                    "gt_info": _gt_info(full, d.mask, frame.depth_m),
                 }
             )
         return out

@@ -75,8 +75,6 @@ Bool = NDArray[np.bool_]
 
 __all__ = ["FastYcbWriter", "FastYcbSequence", "is_fast_ycb_sequence", "PARTS_DIR_NAME"]
 
-"""Folder inside an unfinished sequence holding the writer settings and per-frame records."""
-
 _NOT_POSE_SETS = {"gt", "rgb", "depth", "masks", "optical_flow", "optical_flow_valid", "models"}
 _MASK_FILE = re.compile(r"^(.+)_(\d+)\.png$")
 _ZERO_POSE_ROW = "0 0 0 0 0 0 0"

@@ -26,7 +26,7 @@ from numpy.typing import NDArray
 
 from roft_sim.datasets.base import DetectorPoses
 from roft_sim.errors import ConfigError
-from roft_sim.metrics import SequenceMetrics, evaluate_sequence, pool_metrics
+from roft_sim.metrics import SequenceMetrics, evaluate_sequence, held_estimate_index, pool_metrics
 from roft_sim.records import PoseTrack
 from roft_sim.sensors.pose_estimator import PoseEstimatorConfig, sample_pose_detections
 
@@ -81,10 +81,7 @@ def held_detection_estimates(
     # Last valid detection at or before each source frame, among the frames the network ran on.
     ran = np.zeros(n, dtype=bool)
     ran[::period_frames] = True
-    usable = ran & ok
-    last_valid = np.where(usable, k, -1)
-    last_valid = np.maximum.accumulate(last_valid)
-    chosen = last_valid[source]
+    chosen = held_estimate_index(ran & ok)[source]
     valid = chosen >= 0
     T_est = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
     T_est[valid] = T[chosen[valid]]

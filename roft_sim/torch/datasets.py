@@ -17,7 +17,7 @@ from roft_sim.datasets.base import Sequence as DatasetSequence
 from roft_sim.datasets.frames import DatasetFrame
 from roft_sim.errors import ConfigError
 from roft_sim.geometry.camera import CameraIntrinsics
-from roft_sim.records import FlowField
+from roft_sim.records import FlowField, PoseTrack
 from roft_sim.scenario import Scenario
 
 F64 = NDArray[np.float64]
@@ -187,6 +187,7 @@ class SequenceDataset(Dataset[Sample]):
             for s in self.sequences
         ]
         self._starts = np.cumsum([0, *(len(s) for s in self.sequences)])
+        self._ground_truth: dict[int, PoseTrack | None] = {}  # by sequence index, read once
 
     def __len__(self) -> int:
         return int(self._starts[-1])
@@ -207,7 +208,9 @@ class SequenceDataset(Dataset[Sample]):
         if flow is None and flow_set is not None and len(seq) > 1:
             first = seq.flow(1, flow_set)
             shape = first.flow_px.shape[:2] if first is not None else shape
-        gt = seq.ground_truth()
+        if i not in self._ground_truth:  # a whole-sequence read: not once per item
+            self._ground_truth[i] = seq.ground_truth()
+        gt = self._ground_truth[i]
         return _sample(
             name=seq.name,
             k=k,

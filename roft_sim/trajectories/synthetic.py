@@ -356,6 +356,16 @@ def _speed_fraction(config: SyntheticMotionConfig, forced: bool, rng: np.random.
     return 1.0 if forced else float(rng.uniform(config.min_speed_fraction, 1.0))
 
 
+def _submovement_duration_s(
+    config: SyntheticMotionConfig, speed_mps: float, rate_radps: float, rng: np.random.Generator
+) -> float:
+    """A random reach or twist duration [s], lengthened to respect the acceleration bounds."""
+    return max(
+        float(rng.uniform(*config.submovement_duration_s)),
+        config.shortest_segment_s(speed_mps, rate_radps),
+    )
+
+
 def _reach(
     config: SyntheticMotionConfig,
     lim: _PrimitiveLimits,
@@ -367,9 +377,7 @@ def _reach(
     """A reach from ``p`` (with a little rotation), or nothing when no move fits the region."""
     k, c_acc = MINIMUM_JERK_PEAK_FACTOR, MINIMUM_JERK_ACCELERATION_FACTOR
     speed = _speed_fraction(config, forced, rng) * lim.v_peak
-    T = max(
-        float(rng.uniform(*config.submovement_duration_s)), config.shortest_segment_s(speed, 0.0)
-    )
+    T = _submovement_duration_s(config, speed, 0.0, rng)
     move = _move_inside(region, p, speed * T / k, rng)
     if move is None:
         return []
@@ -390,10 +398,7 @@ def _twist(
     """A rotation about a random axis, with a little drift of the position."""
     k, c_acc = MINIMUM_JERK_PEAK_FACTOR, MINIMUM_JERK_ACCELERATION_FACTOR
     turn_rate = _speed_fraction(config, forced, rng) * lim.w_peak
-    T = max(
-        float(rng.uniform(*config.submovement_duration_s)),
-        config.shortest_segment_s(0.0, turn_rate),
-    )
+    T = _submovement_duration_s(config, 0.0, turn_rate, rng)
     turn = _random_unit(rng) * turn_rate * T / k
     drift_speed = rng.uniform(0.0, config.twist_translation_fraction) * lim.v_peak
     drift_speed = min(drift_speed, lim.a_max * T / c_acc)
