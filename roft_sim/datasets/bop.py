@@ -378,12 +378,14 @@ class BopWriter(FolderWriter):
         """Clutter: each distractor is one more ground-truth instance of the image (index 1,
         2, ... after the tracked object's 0): its masks and its scene_gt / scene_gt_info entries
         (``obj_id`` from its YCB-V name, else 1; no model is written for it)."""
-        seq, k = self.sequence_path, frame.k
+        seq, k, png = self.sequence_path, frame.k, self.settings.png_compression
         out = []
         for i, d in enumerate(frame.gt_distractors, start=1):
             full = d.mask_full if d.mask_full is not None else d.mask
-            atomic_write_bytes(f"{seq}/mask/{k:06d}_{i:06d}.png", encode_png_mask(full))
-            atomic_write_bytes(f"{seq}/mask_visib/{k:06d}_{i:06d}.png", encode_png_mask(d.mask))
+            atomic_write_bytes(f"{seq}/mask/{k:06d}_{i:06d}.png", encode_png_mask(full, level=png))
+            atomic_write_bytes(
+                f"{seq}/mask_visib/{k:06d}_{i:06d}.png", encode_png_mask(d.mask, level=png)
+            )
             R, t = _r_t_mm(d.T_cam_obj)
             out.append(
                 {

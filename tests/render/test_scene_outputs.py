@@ -8,12 +8,14 @@ import dataclasses
 import json
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 from stand_ins import textured_mesh_file
 
 from roft_sim.datasets import open_sequence
 from roft_sim.datasets.bop import bop_obj_id
+from roft_sim.datasets.image_files import PNG_COMPRESSION, encode_png_mask
 from roft_sim.generation import (
     GenerationOptions,
     ScenarioOverrides,
@@ -51,7 +53,8 @@ def _scenario(tmp_path):
 
 @pytest.mark.parametrize("fmt", ["bop", "fast-ycb"])
 def test_distractors_and_visibility_reach_the_dataset(tmp_path, fmt):
-    options = GenerationOptions(format=fmt, progress=False)
+    # a PNG level other than the default, which every PNG of a frame must follow
+    options = GenerationOptions(format=fmt, progress=False, png_compression=PNG_COMPRESSION + 5)
     summary = generate_dataset([_scenario(tmp_path)], tmp_path / "out", options)
     (result,) = summary.sequences
     meta = json.loads((result.path / "metadata.json").read_text())
@@ -73,8 +76,11 @@ def test_distractors_and_visibility_reach_the_dataset(tmp_path, fmt):
         assert [g["obj_id"] for g in gt[k]] == [seq.metadata()["format_options"]["obj_id"],
                                                  bop_obj_id("can")]  # fmt: skip
         assert len(info[k]) == 2 and info[k][1]["px_count_visib"] > 20
-        assert (result.path / "mask_visib" / f"{int(k):06d}_000001.png").is_file()
-        assert (result.path / "mask" / f"{int(k):06d}_000001.png").is_file()
+        for folder in ("mask_visib", "mask"):
+            path = result.path / folder / f"{int(k):06d}_000001.png"
+            # written at the writer's PNG level like every other PNG of the frame
+            decoded = cv2.imread(str(path), cv2.IMREAD_UNCHANGED) > 0
+            assert path.read_bytes() == encode_png_mask(decoded, level=PNG_COMPRESSION + 5)
     # The distractor rests on the table: its pose in the world is the same in every frame.
     cams = seq.camera_poses()
     poses = []
