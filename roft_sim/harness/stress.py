@@ -31,12 +31,13 @@ from roft_sim.errors import ConfigError
 from roft_sim.executors import Executor
 from roft_sim.faults.config import list_fault_presets
 from roft_sim.harness.cells import CELLS_DIR, SweepCell, load_cell_metrics
+from roft_sim.harness.evaluation import estimate_errors
 from roft_sim.harness.options import InitPolicy
 from roft_sim.harness.outputs import ESTIMATES_FILE, load_estimates
 from roft_sim.harness.robust_start import RobustStartConfig
 from roft_sim.harness.sweep import SweepConfig, run_sweep
 from roft_sim.metrics import SequenceMetrics, concatenate_metrics
-from roft_sim.metrics.consistency import chi2_bounds, nees, state_error
+from roft_sim.metrics.consistency import chi2_bounds, nees
 from roft_sim.shipped_files import scenarios_dir
 
 __all__ = [
@@ -354,16 +355,7 @@ def _nees_blocks(cells_dir: Path, cell: SweepCell, cache: dict[str, Any]) -> tup
     gt = cache[cell.sequence_path]
     if gt is None:
         return None, None
-    idx = np.array([e.k for e in estimates])
-    errors = state_error(
-        np.stack([e.T_cam_obj for e in estimates]),
-        np.stack([e.v_obj_mps for e in estimates]),
-        np.stack([e.w_radps for e in estimates]),
-        gt.T_cam_obj[idx],
-        gt.v_obj_mps[idx],
-        gt.w_radps[idx],
-    )
-    covs = np.stack([e.covariance for e in estimates])  # type: ignore[misc]
+    errors, covs = estimate_errors(estimates, gt, np.array([e.k for e in estimates]))
     try:
         pose = nees(errors[:, :6], covs[:, :6, :6])
         velocity = nees(errors[:, 6:], covs[:, 6:, 6:])
