@@ -32,7 +32,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from roft_sim.trackers.roft.config import PoseUKFConfig
+from roft_sim.geometry.so3 import quat_angle
+from roft_sim.trackers.roft.config import PoseGateConfig, PoseUKFConfig
 
 F64 = NDArray[np.float64]
 
@@ -42,6 +43,7 @@ __all__ = [
     "unscented_weights",
     "markley_mean",
     "psd_sqrt",
+    "gate_rejects",
     "ESTIMATE_FROM_UKF_INDEX",
 ]
 
@@ -60,6 +62,26 @@ class PoseBelief:
     """(4,) unit quaternion (w, x, y, z) of R_cam_obj."""
     P: F64
     """(12, 12) covariance over (v, w, p, dtheta) [SI units squared]."""
+
+
+def gate_rejects(
+    gate: PoseGateConfig, predicted: PoseBelief, p_m: F64, q_wxyz: F64, streak: int
+) -> bool:
+    """True when a pose is too far from the prediction and the gate may still reject it.
+
+    Args:
+        gate: the gate's settings.
+        predicted: the belief at the pose's frame, before the correction.
+        p_m: (3,) the pose's position, camera frame [m].
+        q_wxyz: (4,) the pose's orientation, unit quaternion (w, x, y, z).
+        streak: poses rejected in a row before this one (none after
+            ``gate.max_consecutive_rejections``).
+    """
+    if not gate.enable or streak >= gate.max_consecutive_rejections:
+        return False
+    distance_m = float(np.linalg.norm(p_m - predicted.x[6:9]))
+    angle_deg = float(np.degrees(quat_angle(q_wxyz, predicted.q)))
+    return distance_m > gate.max_translation_m or angle_deg > gate.max_rotation_deg
 
 
 def unscented_weights(n: int, alpha: float, beta: float, kappa: float) -> tuple[float, F64, F64]:
