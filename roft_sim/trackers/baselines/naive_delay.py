@@ -16,14 +16,14 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from roft_sim.geometry.so3 import matrix_from_quat, quat_from_matrix
+from roft_sim.geometry.so3 import quat_from_matrix
 from roft_sim.records import Estimate, Observation
 from roft_sim.trackers.base import TrackerContext
 from roft_sim.trackers.baselines.pose_only_ukf import PoseOnlyUkfConfig
 from roft_sim.trackers.roft.pose_ukf import (
-    ESTIMATE_FROM_UKF_INDEX,
     PoseBelief,
     PoseUKF,
+    estimate_from_belief,
     gate_rejects,
 )
 
@@ -107,16 +107,9 @@ class NaiveDelayTracker:
         diagnostics: dict[str, float | int | str] = {"poses_gated": len(rejected)}
         if belief is None:
             return Estimate.invalid(k, dropped_pose_ids=tuple(dropped), diagnostics=diagnostics)
-        T_out = np.eye(4)
-        T_out[:3, :3] = matrix_from_quat(belief.q)
-        T_out[:3, 3] = belief.x[6:9]
-        return Estimate(
-            k=k,
-            T_cam_obj=T_out,
-            v_obj_mps=belief.x[0:3].copy(),
-            w_radps=belief.x[3:6].copy(),
-            covariance=belief.P[np.ix_(ESTIMATE_FROM_UKF_INDEX, ESTIMATE_FROM_UKF_INDEX)],
-            valid=True,
+        return estimate_from_belief(
+            k,
+            belief,
             accepted_pose_ids=tuple(accepted),
             rejected_pose_ids=tuple(rejected),
             dropped_pose_ids=tuple(dropped),

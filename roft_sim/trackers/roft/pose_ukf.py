@@ -27,12 +27,14 @@ reference recomputes them with its log map; identical below pi).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
-from roft_sim.geometry.so3 import quat_angle
+from roft_sim.geometry.so3 import matrix_from_quat, quat_angle
+from roft_sim.records import Estimate
 from roft_sim.trackers.roft.config import PoseGateConfig, PoseUKFConfig
 
 F64 = NDArray[np.float64]
@@ -44,6 +46,7 @@ __all__ = [
     "markley_mean",
     "psd_sqrt",
     "gate_rejects",
+    "estimate_from_belief",
     "ESTIMATE_FROM_UKF_INDEX",
 ]
 
@@ -82,6 +85,36 @@ def gate_rejects(
     distance_m = float(np.linalg.norm(p_m - predicted.x[6:9]))
     angle_deg = float(np.degrees(quat_angle(q_wxyz, predicted.q)))
     return distance_m > gate.max_translation_m or angle_deg > gate.max_rotation_deg
+
+
+def estimate_from_belief(
+    k: int,
+    belief: PoseBelief,
+    *,
+    accepted_pose_ids: tuple[int, ...],
+    rejected_pose_ids: tuple[int, ...],
+    dropped_pose_ids: tuple[int, ...],
+    diagnostics: Mapping[str, float | int | str],
+    spatial_twist: F64 | None = None,
+) -> Estimate:
+    """The valid estimate of frame ``k`` held by ``belief``: its pose, velocities and covariance
+    (reordered by :data:`ESTIMATE_FROM_UKF_INDEX`); the other fields are the ``Estimate``'s."""
+    T_cam_obj = np.eye(4)
+    T_cam_obj[:3, :3] = matrix_from_quat(belief.q)
+    T_cam_obj[:3, 3] = belief.x[6:9]
+    return Estimate(
+        k=k,
+        T_cam_obj=T_cam_obj,
+        v_obj_mps=belief.x[0:3].copy(),
+        w_radps=belief.x[3:6].copy(),
+        covariance=belief.P[np.ix_(ESTIMATE_FROM_UKF_INDEX, ESTIMATE_FROM_UKF_INDEX)],
+        valid=True,
+        spatial_twist=spatial_twist,
+        accepted_pose_ids=accepted_pose_ids,
+        rejected_pose_ids=rejected_pose_ids,
+        dropped_pose_ids=dropped_pose_ids,
+        diagnostics=diagnostics,
+    )
 
 
 def unscented_weights(n: int, alpha: float, beta: float, kappa: float) -> tuple[float, F64, F64]:

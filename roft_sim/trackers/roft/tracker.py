@@ -33,7 +33,7 @@ from numpy.typing import NDArray
 
 from roft_sim.errors import PluginError
 from roft_sim.geometry.se3 import transform_from_pq
-from roft_sim.geometry.so3 import matrix_from_quat, quat_from_matrix
+from roft_sim.geometry.so3 import quat_from_matrix
 from roft_sim.records import (
     Estimate,
     MaskDetection,
@@ -57,6 +57,7 @@ from roft_sim.trackers.roft.pose_ukf import (
     ESTIMATE_FROM_UKF_INDEX,
     PoseBelief,
     PoseUKF,
+    estimate_from_belief,
     gate_rejects,
 )
 from roft_sim.trackers.roft.velocity_kf import VelocityKF, flow_measurement
@@ -437,18 +438,9 @@ class RoftTracker:
                 dropped_pose_ids=tuple(dropped_ids),
                 diagnostics=diagnostics,
             )
-        b = estimate_belief
-        T = np.eye(4)
-        T[:3, :3] = matrix_from_quat(b.q)
-        T[:3, 3] = b.x[6:9]
-        cov = b.P[np.ix_(ESTIMATE_FROM_UKF_INDEX, ESTIMATE_FROM_UKF_INDEX)]
-        return Estimate(
-            k=k,
-            T_cam_obj=T,
-            v_obj_mps=b.x[0:3].copy(),
-            w_radps=b.x[3:6].copy(),
-            covariance=cov,
-            valid=True,
+        return estimate_from_belief(
+            k,
+            estimate_belief,
             spatial_twist=spatial_twist,
             accepted_pose_ids=accepted,
             rejected_pose_ids=rejected,
