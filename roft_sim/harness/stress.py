@@ -540,6 +540,22 @@ def _table(
     return [*lines, ""]
 
 
+def _rows(
+    scores: Mapping[tuple[str, str, str], dict[str, float]],
+    group: str,
+    values: Sequence[str],
+    trackers: Sequence[str],
+) -> list[tuple[str, str, dict[str, float]]]:
+    """The ``(value, tracker, metrics)`` rows of ``scores[(group, tracker, value)]``, value by
+    value, leaving out the combinations not scored."""
+    return [
+        (value, tracker, scores[(group, tracker, value)])
+        for value in values
+        for tracker in trackers
+        if (group, tracker, value) in scores
+    ]
+
+
 def format_stress_report(
     result: StressResult, *, subject: str, baselines: Sequence[str], per_sequence: bool = True
 ) -> str:
@@ -562,29 +578,14 @@ def format_stress_report(
         names = result.splits[split]
         out.append(f"## {split.upper()} split: {', '.join(names)}")
         out.append("")
-        rows = [
-            (preset, tracker, result.pooled[(split, tracker, preset)])
-            for preset in result.presets
-            for tracker in result.trackers
-            if (split, tracker, preset) in result.pooled
-        ]
+        rows = _rows(result.pooled, split, result.presets, result.trackers)
         title = f"### {split.upper()}: pooled over sequences, flows and seeds"
         out += _table(title, rows, "preset")
-        rows = [
-            (flow, tracker, result.per_flow[(split, tracker, flow)])
-            for flow in result.flows
-            for tracker in result.trackers
-            if (split, tracker, flow) in result.per_flow
-        ]
+        rows = _rows(result.per_flow, split, result.flows, result.trackers)
         out += _table(f"### {split.upper()}: per flow source (pooled over presets)", rows, "flow")
         if per_sequence:
             for name in names:
-                rows = [
-                    (preset, tracker, result.per_sequence[(name, tracker, preset)])
-                    for preset in result.presets
-                    for tracker in result.trackers
-                    if (name, tracker, preset) in result.per_sequence
-                ]
+                rows = _rows(result.per_sequence, name, result.presets, result.trackers)
                 out += _table(f"### {split.upper()} sequence {name}", rows, "preset")
     out.append("## Verdict")
     out.append("")
