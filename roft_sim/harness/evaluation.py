@@ -15,6 +15,7 @@ the figures that need the fault ledger:
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -34,10 +35,17 @@ from roft_sim.metrics import (
     recovery_frames,
     state_error,
 )
+from roft_sim.records import Estimate, PoseTrack
 
 F64 = NDArray[np.float64]
 
-__all__ = ["SequenceEvaluation", "evaluate_run", "ARRIVAL_WINDOW_FRAMES", "NEES_DOF"]
+__all__ = [
+    "SequenceEvaluation",
+    "evaluate_run",
+    "estimate_errors",
+    "ARRIVAL_WINDOW_FRAMES",
+    "NEES_DOF",
+]
 
 ARRIVAL_WINDOW_FRAMES = 3
 """Frames on each side of a pose arrival averaged by the ``arrivals`` figure."""
@@ -155,6 +163,32 @@ def _recovery_figures(run: SequenceRun, m: SequenceMetrics) -> dict[str, Any] | 
     }
 
 
+def estimate_errors(
+    estimates: Sequence[Estimate], ground_truth: PoseTrack, frames: NDArray[np.int64]
+) -> tuple[F64, F64]:
+    """The 12-D errors of estimates that all carry a covariance, with those covariances.
+
+    Args:
+        estimates: N estimates, each with a ``covariance``.
+        ground_truth: the sequence's ground truth.
+        frames: (N,) frame of each estimate in ``ground_truth``.
+
+    Returns:
+        ``(errors, covariances)``: (N, 12) ``x_true - x_est`` (:func:`state_error`) and
+        (N, 12, 12), both in ``ESTIMATE_COVARIANCE_ORDER``.
+    """
+    errors = state_error(
+        np.stack([e.T_cam_obj for e in estimates]),
+        np.stack([e.v_obj_mps for e in estimates]),
+        np.stack([e.w_radps for e in estimates]),
+        ground_truth.T_cam_obj[frames],
+        ground_truth.v_obj_mps[frames],
+        ground_truth.w_radps[frames],
+    )
+    covariances = np.stack([e.covariance for e in estimates])  # type: ignore[misc]
+    return errors, covariances
+
+
 def _consistency_figures(run: SequenceRun) -> dict[str, Any] | None:
     gt = run.ground_truth
     rows = [
@@ -164,17 +198,7 @@ def _consistency_figures(run: SequenceRun) -> dict[str, Any] | None:
     ]
     if gt is None or not rows:
         return None
-    idx = np.array(rows)
-    est = [run.estimates[k] for k in rows]
-    errors = state_error(
-        np.stack([e.T_cam_obj for e in est]),
-        np.stack([e.v_obj_mps for e in est]),
-        np.stack([e.w_radps for e in est]),
-        gt.T_cam_obj[idx],
-        gt.v_obj_mps[idx],
-        gt.w_radps[idx],
-    )
-    covs = np.stack([e.covariance for e in est])  # type: ignore[misc]
+    errors, covs = estimate_errors([run.estimates[k] for k in rows], gt, np.array(rows))
     try:
         values = nees(errors, covs)
     except ValueError as e:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any, Literal, get_args
 
 from roft_sim.errors import ConfigError
 from roft_sim.faults import FaultConfig, load_faults
@@ -46,7 +46,7 @@ def default_invalid_policy(faults_name: str) -> InvalidPolicy:
 
 
 InitPolicy = Literal["first-detection", "robust", "gt"]
-INIT_POLICIES: tuple[str, ...] = ("first-detection", "robust", "gt")
+INIT_POLICIES: tuple[str, ...] = get_args(InitPolicy)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

@@ -202,13 +202,12 @@ def _video_scale(width: int, options: ReportOptions) -> float:
     return 1.0 if width <= 960 else 0.5
 
 
-def _frame_errors(folder: Path, n_frames: int) -> tuple[np.ndarray, np.ndarray]:
-    """Per frame (n_frames,) position [cm] and rotation [deg] error of a run folder; NaN where
-    there is none (no ground truth, or a frame not scored)."""
+def _frame_errors(errors: SequenceMetrics | None, n_frames: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per frame (n_frames,) position [cm] and rotation [deg] error of a sequence's metrics; NaN
+    where there is none (no ground truth, or a frame not scored)."""
     err_t = np.full(n_frames, np.nan)
     err_a = np.full(n_frames, np.nan)
-    if (folder / FRAME_ERRORS_FILE).is_file():
-        errors = load_frame_errors(folder / FRAME_ERRORS_FILE)
+    if errors is not None:
         err_t[errors.frame_index] = errors.t_err_norm_cm
         err_a[errors.frame_index] = errors.a_err_deg
     return err_t, err_a
@@ -231,8 +230,10 @@ def _write_video(
     out_dir: Path,
     options: ReportOptions,
     still_frames: Sequence[int],
+    errors: SequenceMetrics | None,
 ) -> tuple[list[Path], str | None]:
-    """Writes the overlay video and stills of one sequence; returns the files and a note."""
+    """Writes the overlay video and stills of one sequence (``errors``: its frame errors, None
+    without ground truth); returns the files and a note."""
     name = seq_record["name"]
     path = seq_record.get("path")
     if not path or not Path(path).exists():
@@ -248,7 +249,7 @@ def _write_video(
         with_flow=False,
     )
     estimates = load_estimates(folder / ESTIMATES_FILE)
-    err_t, err_a = _frame_errors(folder, len(sequence))
+    err_t, err_a = _frame_errors(errors, len(sequence))
     intr = sequence.intrinsics
     scale = _video_scale(intr.width_px, options)
     n = (
@@ -459,7 +460,7 @@ def _sequence_section(
     if options.video:
         try:
             written, note = _write_video(
-                seq, run, folder, out, options, _still_frames(m, arrivals, seq["frames"])
+                seq, run, folder, out, options, _still_frames(m, arrivals, seq["frames"]), m
             )
         except (RoftSimError, OSError) as e:
             written, note = [], f"{name}: no overlay video ({e})"

@@ -12,7 +12,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, get_args
 
 from roft_sim.config_files import jsonable
 from roft_sim.datasets import detect_format, list_sequences, open_sequence
@@ -51,7 +51,7 @@ __all__ = [
 RUN_FILE = "run.json"
 METRICS_FILE = "metrics.json"
 OutputLayout = Literal["ours", "reference"]
-OUTPUT_LAYOUTS: tuple[str, ...] = ("ours", "reference")
+OUTPUT_LAYOUTS: tuple[str, ...] = get_args(OutputLayout)
 """``ours``: one folder per sequence (docs/running.md); ``reference``: that, plus the tree the
 reference ROFT evaluation reads (:mod:`roft_sim.harness.reference_layout`)."""
 

@@ -31,12 +31,13 @@ from roft_sim.errors import ConfigError
 from roft_sim.executors import Executor
 from roft_sim.faults.config import list_fault_presets
 from roft_sim.harness.cells import CELLS_DIR, SweepCell, load_cell_metrics
+from roft_sim.harness.evaluation import estimate_errors
 from roft_sim.harness.options import InitPolicy
 from roft_sim.harness.outputs import ESTIMATES_FILE, load_estimates
 from roft_sim.harness.robust_start import RobustStartConfig
 from roft_sim.harness.sweep import SweepConfig, run_sweep
 from roft_sim.metrics import SequenceMetrics, concatenate_metrics
-from roft_sim.metrics.consistency import chi2_bounds, nees, state_error
+from roft_sim.metrics.consistency import chi2_bounds, nees
 from roft_sim.shipped_files import scenarios_dir
 
 __all__ = [
@@ -354,16 +355,7 @@ def _nees_blocks(cells_dir: Path, cell: SweepCell, cache: dict[str, Any]) -> tup
     gt = cache[cell.sequence_path]
     if gt is None:
         return None, None
-    idx = np.array([e.k for e in estimates])
-    errors = state_error(
-        np.stack([e.T_cam_obj for e in estimates]),
-        np.stack([e.v_obj_mps for e in estimates]),
-        np.stack([e.w_radps for e in estimates]),
-        gt.T_cam_obj[idx],
-        gt.v_obj_mps[idx],
-        gt.w_radps[idx],
-    )
-    covs = np.stack([e.covariance for e in estimates])  # type: ignore[misc]
+    errors, covs = estimate_errors(estimates, gt, np.array([e.k for e in estimates]))
     try:
         pose = nees(errors[:, :6], covs[:, :6, :6])
         velocity = nees(errors[:, 6:], covs[:, 6:, 6:])
@@ -548,6 +540,22 @@ def _table(
     return [*lines, ""]
 
 
+def _rows(
+    scores: Mapping[tuple[str, str, str], dict[str, float]],
+    group: str,
+    values: Sequence[str],
+    trackers: Sequence[str],
+) -> list[tuple[str, str, dict[str, float]]]:
+    """The ``(value, tracker, metrics)`` rows of ``scores[(group, tracker, value)]``, value by
+    value, leaving out the combinations not scored."""
+    return [
+        (value, tracker, scores[(group, tracker, value)])
+        for value in values
+        for tracker in trackers
+        if (group, tracker, value) in scores
+    ]
+
+
 def format_stress_report(
     result: StressResult, *, subject: str, baselines: Sequence[str], per_sequence: bool = True
 ) -> str:
@@ -570,29 +578,14 @@ def format_stress_report(
         names = result.splits[split]
         out.append(f"## {split.upper()} split: {', '.join(names)}")
         out.append("")
-        rows = [
-            (preset, tracker, result.pooled[(split, tracker, preset)])
-            for preset in result.presets
-            for tracker in result.trackers
-            if (split, tracker, preset) in result.pooled
-        ]
+        rows = _rows(result.pooled, split, result.presets, result.trackers)
         title = f"### {split.upper()}: pooled over sequences, flows and seeds"
         out += _table(title, rows, "preset")
-        rows = [
-            (flow, tracker, result.per_flow[(split, tracker, flow)])
-            for flow in result.flows
-            for tracker in result.trackers
-            if (split, tracker, flow) in result.per_flow
-        ]
+        rows = _rows(result.per_flow, split, result.flows, result.trackers)
         out += _table(f"### {split.upper()}: per flow source (pooled over presets)", rows, "flow")
         if per_sequence:
             for name in names:
-                rows = [
-                    (preset, tracker, result.per_sequence[(name, tracker, preset)])
-                    for preset in result.presets
-                    for tracker in result.trackers
-                    if (name, tracker, preset) in result.per_sequence
-                ]
+                rows = _rows(result.per_sequence, name, result.presets, result.trackers)
                 out += _table(f"### {split.upper()} sequence {name}", rows, "preset")
     out.append("## Verdict")
     out.append("")

@@ -38,7 +38,7 @@ import dataclasses
 from collections.abc import Mapping
 from collections.abc import Sequence as SequenceABC
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any, Literal, get_args
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -71,7 +71,7 @@ __all__ = [
 ]
 
 InvalidPolicy = Literal["failure", "exclude", "as_given", "hold"]
-INVALID_POLICIES: tuple[str, ...] = ("failure", "exclude", "as_given", "hold")
+INVALID_POLICIES: tuple[str, ...] = get_args(InvalidPolicy)
 """Every :data:`InvalidPolicy`, in the order the CLI lists them."""
 _POLICY_NOTES = {
     "failure": "frames without a tracker pose are failures (ADD = inf, left out of the RMSEs)",

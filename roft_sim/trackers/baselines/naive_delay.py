@@ -3,7 +3,8 @@ if it had been captured then (the classic mistake with delayed detections).
 
 An independent tracker class (it used to be ROFT's class with replay switched off, an ablation):
 it keeps one running belief, no buffers and no replay. It shares only the quaternion UKF's
-predict/correct functions (:class:`roft_sim.trackers.roft.pose_ukf.PoseUKF`) and the settings of
+predict/correct functions (:class:`roft_sim.trackers.roft.pose_ukf.PoseUKF`), ROFT's pose gate
+test (:func:`~roft_sim.trackers.roft.pose_ukf.gate_rejects`) and the settings of
 ``pose-only-ukf`` (:class:`PoseOnlyUkfConfig`: noise, the pose gate), so that the two baselines
 differ in the delay handling alone. Per frame k: predict over the frame's time step, then correct
 with each pose arriving at k (in ``detection_id`` order) unless the gate rejects it. The first
@@ -15,11 +16,16 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from roft_sim.geometry.so3 import matrix_from_quat, quat_angle, quat_from_matrix
+from roft_sim.geometry.so3 import quat_from_matrix
 from roft_sim.records import Estimate, Observation
 from roft_sim.trackers.base import TrackerContext
 from roft_sim.trackers.baselines.pose_only_ukf import PoseOnlyUkfConfig
-from roft_sim.trackers.roft.pose_ukf import ESTIMATE_FROM_UKF_INDEX, PoseBelief, PoseUKF
+from roft_sim.trackers.roft.pose_ukf import (
+    PoseBelief,
+    PoseUKF,
+    estimate_from_belief,
+    gate_rejects,
+)
 
 __all__ = ["NaiveDelayTracker"]
 
@@ -48,14 +54,6 @@ class NaiveDelayTracker:
         self._last_t: float | None = None
         self._streak = 0
         self._seen: set[int] = set()
-
-    def _gate_rejects(self, predicted: PoseBelief, p_m: F64, q_wxyz: F64) -> bool:
-        gate = self._config.gate
-        if not gate.enable or self._streak >= gate.max_consecutive_rejections:
-            return False
-        distance_m = float(np.linalg.norm(p_m - predicted.x[6:9]))
-        angle_deg = float(np.degrees(quat_angle(q_wxyz, predicted.q)))
-        return distance_m > gate.max_translation_m or angle_deg > gate.max_rotation_deg
 
     def step(self, observation: Observation) -> Estimate:
         """Consumes camera frame ``observation.k``; poses are fused as if captured now."""
@@ -98,7 +96,7 @@ class NaiveDelayTracker:
                 belief = self._ukf.correct(belief, p_meas_m=p, q_meas_wxyz=q)
                 accepted.append(det.detection_id)
                 continue
-            if self._gate_rejects(belief, p, q):
+            if gate_rejects(self._config.gate, belief, p, q, self._streak):
                 self._streak += 1
                 rejected.append(det.detection_id)
                 continue
@@ -109,16 +107,9 @@ class NaiveDelayTracker:
         diagnostics: dict[str, float | int | str] = {"poses_gated": len(rejected)}
         if belief is None:
             return Estimate.invalid(k, dropped_pose_ids=tuple(dropped), diagnostics=diagnostics)
-        T_out = np.eye(4)
-        T_out[:3, :3] = matrix_from_quat(belief.q)
-        T_out[:3, 3] = belief.x[6:9]
-        return Estimate(
-            k=k,
-            T_cam_obj=T_out,
-            v_obj_mps=belief.x[0:3].copy(),
-            w_radps=belief.x[3:6].copy(),
-            covariance=belief.P[np.ix_(ESTIMATE_FROM_UKF_INDEX, ESTIMATE_FROM_UKF_INDEX)],
-            valid=True,
+        return estimate_from_belief(
+            k,
+            belief,
             accepted_pose_ids=tuple(accepted),
             rejected_pose_ids=tuple(rejected),
             dropped_pose_ids=tuple(dropped),

@@ -27,12 +27,15 @@ reference recomputes them with its log map; identical below pi).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
-from roft_sim.trackers.roft.config import PoseUKFConfig
+from roft_sim.geometry.so3 import matrix_from_quat, quat_angle
+from roft_sim.records import Estimate
+from roft_sim.trackers.roft.config import PoseGateConfig, PoseUKFConfig
 
 F64 = NDArray[np.float64]
 
@@ -42,6 +45,8 @@ __all__ = [
     "unscented_weights",
     "markley_mean",
     "psd_sqrt",
+    "gate_rejects",
+    "estimate_from_belief",
     "ESTIMATE_FROM_UKF_INDEX",
 ]
 
@@ -60,6 +65,56 @@ class PoseBelief:
     """(4,) unit quaternion (w, x, y, z) of R_cam_obj."""
     P: F64
     """(12, 12) covariance over (v, w, p, dtheta) [SI units squared]."""
+
+
+def gate_rejects(
+    gate: PoseGateConfig, predicted: PoseBelief, p_m: F64, q_wxyz: F64, streak: int
+) -> bool:
+    """True when a pose is too far from the prediction and the gate may still reject it.
+
+    Args:
+        gate: the gate's settings.
+        predicted: the belief at the pose's frame, before the correction.
+        p_m: (3,) the pose's position, camera frame [m].
+        q_wxyz: (4,) the pose's orientation, unit quaternion (w, x, y, z).
+        streak: poses rejected in a row before this one (none after
+            ``gate.max_consecutive_rejections``).
+    """
+    if not gate.enable or streak >= gate.max_consecutive_rejections:
+        return False
+    distance_m = float(np.linalg.norm(p_m - predicted.x[6:9]))
+    angle_deg = float(np.degrees(quat_angle(q_wxyz, predicted.q)))
+    return distance_m > gate.max_translation_m or angle_deg > gate.max_rotation_deg
+
+
+def estimate_from_belief(
+    k: int,
+    belief: PoseBelief,
+    *,
+    accepted_pose_ids: tuple[int, ...],
+    rejected_pose_ids: tuple[int, ...],
+    dropped_pose_ids: tuple[int, ...],
+    diagnostics: Mapping[str, float | int | str],
+    spatial_twist: F64 | None = None,
+) -> Estimate:
+    """The valid estimate of frame ``k`` held by ``belief``: its pose, velocities and covariance
+    (reordered by :data:`ESTIMATE_FROM_UKF_INDEX`); the other fields are the ``Estimate``'s."""
+    T_cam_obj = np.eye(4)
+    T_cam_obj[:3, :3] = matrix_from_quat(belief.q)
+    T_cam_obj[:3, 3] = belief.x[6:9]
+    return Estimate(
+        k=k,
+        T_cam_obj=T_cam_obj,
+        v_obj_mps=belief.x[0:3].copy(),
+        w_radps=belief.x[3:6].copy(),
+        covariance=belief.P[np.ix_(ESTIMATE_FROM_UKF_INDEX, ESTIMATE_FROM_UKF_INDEX)],
+        valid=True,
+        spatial_twist=spatial_twist,
+        accepted_pose_ids=accepted_pose_ids,
+        rejected_pose_ids=rejected_pose_ids,
+        dropped_pose_ids=dropped_pose_ids,
+        diagnostics=diagnostics,
+    )
 
 
 def unscented_weights(n: int, alpha: float, beta: float, kappa: float) -> tuple[float, F64, F64]:

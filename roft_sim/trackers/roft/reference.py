@@ -131,85 +131,77 @@ class Deviation:
     """Returns the configuration with this deviation applied."""
 
 
-def _mask(c: RoftConfig, **kw: object) -> RoftConfig:
-    return _rep(c, mask=_rep(c.mask, **kw))
-
-
-def _vel(c: RoftConfig, **kw: object) -> RoftConfig:
-    return _rep(c, velocity=_rep(c.velocity, **kw))
-
-
-def _pose(c: RoftConfig, **kw: object) -> RoftConfig:
-    return _rep(c, pose=_rep(c.pose, **kw))
-
-
 _DEFAULT = RoftConfig()
+
+
+def _restore(section: str, *names: str) -> Callable[[RoftConfig], RoftConfig]:
+    """Sets the fields ``names`` of the ``section`` config (``mask``, ``velocity``, ...) back to
+    their ``RoftConfig()`` values."""
+
+    def apply(c: RoftConfig) -> RoftConfig:
+        default = getattr(_DEFAULT, section)
+        changes = {name: getattr(default, name) for name in names}
+        return _rep(c, **{section: _rep(getattr(c, section), **changes)})
+
+    return apply
+
 
 DEVIATIONS: tuple[Deviation, ...] = (
     Deviation(
         "horizon",
         f"poses and masks up to {_DEFAULT.sync.horizon_frames} frames old are replayed (the "
         "reference's buffers hold the fixed 6)",
-        lambda c: _rep(c, sync=_rep(c.sync, horizon_frames=_DEFAULT.sync.horizon_frames)),
+        _restore("sync", "horizon_frames"),
     ),
     Deviation(
         "mask_nearest",
         "a tracked point lands in its nearest pixel, not the C-truncated one",
-        lambda c: _mask(c, rounding=_DEFAULT.mask.rounding),
+        _restore("mask", "rounding"),
     ),
     Deviation(
         "mask_subpixel_close",
         "mask points keep sub-pixel positions between frames; 3x3 closing after each step",
-        lambda c: _mask(c, cleanup=_DEFAULT.mask.cleanup, subpixel=_DEFAULT.mask.subpixel),
+        _restore("mask", "cleanup", "subpixel"),
     ),
     Deviation(
         "metric_erosion",
         "the flow is read on the mask eroded by a 5 mm band (at most half the mask removed)",
-        lambda c: _vel(
-            c,
-            mask_erosion_px=_DEFAULT.velocity.mask_erosion_px,
-            mask_erosion_m=_DEFAULT.velocity.mask_erosion_m,
-            mask_erosion_max_removed=_DEFAULT.velocity.mask_erosion_max_removed,
-        ),
+        _restore("velocity", "mask_erosion_px", "mask_erosion_m", "mask_erosion_max_removed"),
     ),
     Deviation(
         "depth_band",
         "flow pixels more than 15 cm in depth from the mask's median depth are not used",
-        lambda c: _vel(c, depth_band_m=_DEFAULT.velocity.depth_band_m),
+        _restore("velocity", "depth_band_m"),
     ),
     Deviation(
         "resolution_scaling",
         "flow R and pixel stride given at 1280 px and scaled by (W / 1280)^2",
-        lambda c: _vel(c, noise_reference_width_px=_DEFAULT.velocity.noise_reference_width_px),
+        _restore("velocity", "noise_reference_width_px"),
     ),
     Deviation(
         "reweighting_pairs",
         "Laplacian weights from the true (du, dv) pairs, not the column-major mis-pairing",
-        lambda c: _vel(c, reweighting_pairs=_DEFAULT.velocity.reweighting_pairs),
+        _restore("velocity", "reweighting_pairs"),
     ),
     Deviation(
         "adaptive_flow_noise",
         "flow R from the robust residual spread; one measurement per flow grid cell",
-        lambda c: _vel(
-            c,
-            adapt_flow_noise=_DEFAULT.velocity.adapt_flow_noise,
-            independent_pixels_per_cell=_DEFAULT.velocity.independent_pixels_per_cell,
-        ),
+        _restore("velocity", "adapt_flow_noise", "independent_pixels_per_cell"),
     ),
     Deviation(
         "skip_stale_velocity",
         "no velocity measurement to the UKF when the KF did not update",
-        lambda c: _vel(c, skip_stale_velocity=_DEFAULT.velocity.skip_stale_velocity),
+        _restore("velocity", "skip_stale_velocity"),
     ),
     Deviation(
         "twist_covariance",
         "the KF's covariance is added to the UKF's velocity measurement noise",
-        lambda c: _vel(c, twist_covariance_to_ukf=_DEFAULT.velocity.twist_covariance_to_ukf),
+        _restore("velocity", "twist_covariance_to_ukf"),
     ),
     Deviation(
         "interval_velocity",
         "the UKF integrates the pose with the new (interval-mean) velocity the flow measures",
-        lambda c: _pose(c, integrate_interval_velocity=_DEFAULT.pose.integrate_interval_velocity),
+        _restore("pose", "integrate_interval_velocity"),
     ),
 )
 """The deviations in the order the attribution table adds them; applying all of them to

@@ -33,7 +33,7 @@ from numpy.typing import NDArray
 
 from roft_sim.errors import PluginError
 from roft_sim.geometry.se3 import transform_from_pq
-from roft_sim.geometry.so3 import matrix_from_quat, quat_angle, quat_from_matrix
+from roft_sim.geometry.so3 import quat_from_matrix
 from roft_sim.records import (
     Estimate,
     MaskDetection,
@@ -53,7 +53,13 @@ from roft_sim.trackers.roft.outlier_rejection import (
     DepthSamples,
     depth_samples,
 )
-from roft_sim.trackers.roft.pose_ukf import ESTIMATE_FROM_UKF_INDEX, PoseBelief, PoseUKF
+from roft_sim.trackers.roft.pose_ukf import (
+    ESTIMATE_FROM_UKF_INDEX,
+    PoseBelief,
+    PoseUKF,
+    estimate_from_belief,
+    gate_rejects,
+)
 from roft_sim.trackers.roft.velocity_kf import VelocityKF, flow_measurement
 
 F64 = NDArray[np.float64]
@@ -313,15 +319,6 @@ class RoftTracker:
             belief = PoseBelief(x=belief.x, q=belief.q, P=0.5 * (P + P.T))
         return belief
 
-    def _gate_rejects(self, predicted: PoseBelief, pose: _Pose, streak: int) -> bool:
-        """True when the pose is too far from the prediction (and the streak allows it)."""
-        gate = self._config.gate
-        if not gate.enable or streak >= gate.max_consecutive_rejections:
-            return False
-        distance_m = float(np.linalg.norm(pose.p_m - predicted.x[6:9]))
-        angle_deg = float(np.degrees(quat_angle(pose.q_wxyz, predicted.q)))
-        return distance_m > gate.max_translation_m or angle_deg > gate.max_rotation_deg
-
     def _correct_with_pose(
         self,
         predicted: PoseBelief,
@@ -353,7 +350,7 @@ class RoftTracker:
         without_pose = (
             self._ukf.correct(predicted, twist=twist, twist_cov=twist_cov) if first else predicted
         )
-        if self._gate_rejects(predicted, pose, streak):
+        if gate_rejects(self._config.gate, predicted, pose.p_m, pose.q_wxyz, streak):
             self._decisions[pose.detection_id] = False
             self._gated.add(pose.detection_id)
             return without_pose, streak + 1
@@ -441,18 +438,9 @@ class RoftTracker:
                 dropped_pose_ids=tuple(dropped_ids),
                 diagnostics=diagnostics,
             )
-        b = estimate_belief
-        T = np.eye(4)
-        T[:3, :3] = matrix_from_quat(b.q)
-        T[:3, 3] = b.x[6:9]
-        cov = b.P[np.ix_(ESTIMATE_FROM_UKF_INDEX, ESTIMATE_FROM_UKF_INDEX)]
-        return Estimate(
-            k=k,
-            T_cam_obj=T,
-            v_obj_mps=b.x[0:3].copy(),
-            w_radps=b.x[3:6].copy(),
-            covariance=cov,
-            valid=True,
+        return estimate_from_belief(
+            k,
+            estimate_belief,
             spatial_twist=spatial_twist,
             accepted_pose_ids=accepted,
             rejected_pose_ids=rejected,
