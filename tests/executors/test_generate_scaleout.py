@@ -203,7 +203,7 @@ def test_a_killed_ray_driver_resumes_to_the_same_bytes(tmp_path):
     cmd = [sys.executable, "-m", "roft_sim", "generate", str(ci_scenario_file()), "--out",
            str(out), "--executor", "ray", "--workers", "2", *common]  # fmt: skip
     proc = subprocess.Popen(cmd, start_new_session=True, stderr=subprocess.DEVNULL)
-    parts = out / "ci_cracker_box" / PARTS_DIR_NAME
+    parts = out / "003_cracker_box" / PARTS_DIR_NAME  # generate names a folder by its object
     deadline = time.monotonic() + 300
     try:
         while len(list(parts.glob("frame_*.json"))) < 3:
