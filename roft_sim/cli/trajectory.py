@@ -283,12 +283,6 @@ def _build(
     return config, trajectory
 
 
-SPLIT_SEEDS: dict[str, tuple[int, ...]] = {
-    "tuning": tuple(range(10)),
-    "evaluation": tuple(range(100, 110)),
-}
-"""Synthetic seeds of each split (the project-wide split)."""
-
 HAND_MOTION_DURATION_S = 30.0
 """Length of each synthetic motion pooled by ``stats --hand-motion`` [s]."""
 
@@ -307,6 +301,7 @@ def trajectories_dir_from_args(given: Path | None) -> Path:
 
 def _run_hand_motion_stats(args: argparse.Namespace) -> int:
     from roft_sim.trajectories.statistics import (
+        SPLIT_SEEDS,
         captured_distribution,
         fit_error,
         format_distribution_table,

@@ -29,6 +29,7 @@ from roft_sim.errors import ConfigError
 from roft_sim.metrics import SequenceMetrics, evaluate_sequence, held_estimate_index, pool_metrics
 from roft_sim.records import PoseTrack
 from roft_sim.sensors.pose_estimator import PoseEstimatorConfig, sample_pose_detections
+from roft_sim.trajectories.statistics import SPLIT_SEEDS
 
 F64 = NDArray[np.float64]
 
@@ -238,9 +239,9 @@ def fit_object(
 
 
 # ------------------------------------------------------------------------------- the fit, rerun
-FIT_SEEDS = tuple(range(10))
+FIT_SEEDS = SPLIT_SEEDS["tuning"]
 """Trajectory seeds the fit uses (the project's TUNING split: synthetic seeds 0-9)."""
-REPORT_SEEDS = tuple(range(100, 110))
+REPORT_SEEDS = SPLIT_SEEDS["evaluation"]
 """Trajectory seeds the fit is reported on (the EVALUATION split: synthetic seeds 100-109)."""
 FIT_POINTS = 256
 """Model points used inside the fit (a fixed random subset, for speed); reports use all."""

@@ -41,6 +41,7 @@ __all__ = [
     "CapturedSource",
     "HandMotionSplit",
     "HAND_MOTION_SPLITS",
+    "SPLIT_SEEDS",
     "STATS_RATE_HZ",
     "motion_distribution",
     "captured_sources",
@@ -197,6 +198,11 @@ HAND_MOTION_SPLITS: dict[str, tuple[str, ...]] = {
     "evaluation": ("tum:room2", "tum:room4", "bvh:002_06"),
 }
 """The captures of each split (the project-wide TUNING / EVALUATION split)."""
+SPLIT_SEEDS: dict[str, tuple[int, ...]] = {
+    "tuning": tuple(range(10)),
+    "evaluation": tuple(range(100, 110)),
+}
+"""The synthetic-motion seeds of each split (the project-wide TUNING / EVALUATION split)."""
 
 LOWPASS_HZ = 10.0
 """Low-pass cut-off of every captured reference motion [Hz]."""
@@ -353,7 +359,7 @@ def fit_continuous_motion(
     intrinsics: CameraIntrinsics,
     *,
     start: ContinuousMotionConfig | None = None,
-    seeds: Sequence[int] = tuple(range(10)),
+    seeds: Sequence[int] = SPLIT_SEEDS["tuning"],
     min_median_angular_speed_dps: float = 80.0,
     iterations: int = 3,
     tempo_variations: Sequence[float] = TEMPO_VARIATIONS,
