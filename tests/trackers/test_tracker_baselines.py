@@ -164,3 +164,23 @@ def test_naive_delay_is_its_own_class_and_equals_the_no_replay_ablation(small_se
         if a.valid:
             np.testing.assert_allclose(a.T_cam_obj, b.T_cam_obj, atol=1e-12)
             np.testing.assert_allclose(a.covariance, b.covariance, atol=1e-12)
+
+
+@pytest.mark.parametrize("name", ["naive-delay", "pose-only-ukf"])
+def test_an_initial_estimates_covariance_initialises_the_filter(tiny_seq, name):
+    """A given initial Estimate's covariance is the filter's first covariance (not the
+    configured one): with no pose arriving, frame 0's reported covariance is that matrix."""
+    seq = tiny_seq
+    rng = np.random.default_rng(3)
+    A = rng.normal(size=(12, 12))
+    cov = A @ A.T * 1e-4 + np.eye(12) * 1e-3
+    initial = Estimate(
+        k=0,
+        T_cam_obj=seq.gt.T_cam_obj[0],
+        v_obj_mps=np.zeros(3),
+        w_radps=np.zeros(3),
+        covariance=cov,
+    )
+    est = run_tracker(_make(name, seq), build_observations(seq, poses=[]), initial)
+    np.testing.assert_allclose(est[0].covariance, cov, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(est[0].T_cam_obj, seq.gt.T_cam_obj[0], atol=1e-12)

@@ -8,7 +8,8 @@ test (:func:`~roft_sim.trackers.roft.pose_ukf.gate_rejects`) and the settings of
 ``pose-only-ukf`` (:class:`PoseOnlyUkfConfig`: noise, the pose gate), so that the two baselines
 differ in the delay handling alone. Per frame k: predict over the frame's time step, then correct
 with each pose arriving at k (in ``detection_id`` order) unless the gate rejects it. The first
-valid pose initialises the filter (zero velocity, the initial covariance) at its arrival frame.
+valid pose initialises the filter (zero velocity, the initial covariance) at its arrival frame;
+a given initial ``Estimate`` initialises it with its own covariance where it has one.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from roft_sim.trackers.baselines.pose_only_ukf import PoseOnlyUkfConfig
 from roft_sim.trackers.roft.pose_ukf import (
     PoseBelief,
     PoseUKF,
+    belief_from_estimate,
     estimate_from_belief,
     gate_rejects,
 )
@@ -69,13 +71,7 @@ class NaiveDelayTracker:
         )
         self._last_k, self._last_t = k, observation.t_s
         if self._belief is None and self._initial is not None:
-            T0 = np.asarray(self._initial.T_cam_obj, dtype=np.float64)
-            self._belief = self._ukf.initial_belief(
-                T0[:3, 3],
-                quat_from_matrix(T0[:3, :3]),
-                self._initial.v_obj_mps,
-                self._initial.w_radps,
-            )
+            self._belief = belief_from_estimate(self._ukf, self._initial)
             if self._initial.k == k:
                 dt = 0.0
         accepted: list[int] = []

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from roft_sim.geometry.so3 import matrix_from_quat, quat_angle
+from roft_sim.geometry.so3 import matrix_from_quat, quat_angle, quat_from_matrix
 from roft_sim.records import Estimate
 from roft_sim.trackers.roft.config import PoseGateConfig, PoseUKFConfig
 
@@ -48,6 +48,7 @@ __all__ = [
     "gate_rejects",
     "estimate_from_belief",
     "ESTIMATE_FROM_UKF_INDEX",
+    "belief_from_estimate",
 ]
 
 ESTIMATE_FROM_UKF_INDEX = np.array([6, 7, 8, 9, 10, 11, 0, 1, 2, 3, 4, 5])
@@ -115,6 +116,21 @@ def estimate_from_belief(
         dropped_pose_ids=dropped_pose_ids,
         diagnostics=diagnostics,
     )
+
+
+def belief_from_estimate(ukf: PoseUKF, initial: Estimate) -> PoseBelief:
+    """The belief an ``Estimate`` describes, the inverse of :func:`estimate_from_belief`: its pose
+    and velocities, and its covariance (reordered from the ``Estimate``'s order, symmetrised)
+    when it has one, else ``ukf``'s configured initial covariance."""
+    T = np.asarray(initial.T_cam_obj, dtype=np.float64)
+    belief = ukf.initial_belief(
+        T[:3, 3], quat_from_matrix(T[:3, :3]), initial.v_obj_mps, initial.w_radps
+    )
+    if initial.covariance is None:
+        return belief
+    inv = np.argsort(ESTIMATE_FROM_UKF_INDEX)
+    P = np.asarray(initial.covariance, dtype=np.float64)[np.ix_(inv, inv)]
+    return PoseBelief(x=belief.x, q=belief.q, P=0.5 * (P + P.T))
 
 
 def unscented_weights(n: int, alpha: float, beta: float, kappa: float) -> tuple[float, F64, F64]:

@@ -54,9 +54,9 @@ from roft_sim.trackers.roft.outlier_rejection import (
     depth_samples,
 )
 from roft_sim.trackers.roft.pose_ukf import (
-    ESTIMATE_FROM_UKF_INDEX,
     PoseBelief,
     PoseUKF,
+    belief_from_estimate,
     estimate_from_belief,
     gate_rejects,
 )
@@ -309,15 +309,7 @@ class RoftTracker:
         return start, self._beliefs[start - 1]
 
     def _initial_belief_from_estimate(self, initial: Estimate) -> PoseBelief:
-        T = np.asarray(initial.T_cam_obj, dtype=np.float64)
-        belief = self._ukf.initial_belief(
-            T[:3, 3], quat_from_matrix(T[:3, :3]), initial.v_obj_mps, initial.w_radps
-        )
-        if initial.covariance is not None:
-            inv = np.argsort(ESTIMATE_FROM_UKF_INDEX)
-            P = np.asarray(initial.covariance, dtype=np.float64)[np.ix_(inv, inv)]
-            belief = PoseBelief(x=belief.x, q=belief.q, P=0.5 * (P + P.T))
-        return belief
+        return belief_from_estimate(self._ukf, initial)
 
     def _correct_with_pose(
         self,
