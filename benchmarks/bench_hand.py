@@ -32,21 +32,14 @@ BACKEND = require_gl_backend(os.environ)  # before anything imports mujoco
 
 import numpy as np  # noqa: E402
 
-from roft_sim.assets import sample_surface_points  # noqa: E402
+from roft_sim.assets import FAST_YCB_OBJECTS, sample_surface_points  # noqa: E402
 from roft_sim.generation import ScenarioOverrides, shipped_scenarios_dir  # noqa: E402
 from roft_sim.generation.sequence_generator import SequenceGenerator  # noqa: E402
 from roft_sim.render import SceneRenderer  # noqa: E402
 from roft_sim.scenario import Scenario, load_scenario  # noqa: E402
 from roft_sim.scene.config import HandConfig  # noqa: E402
 
-OBJECTS = (
-    "003_cracker_box",
-    "004_sugar_box",
-    "005_tomato_soup_can",
-    "006_mustard_bottle",
-    "009_gelatin_box",
-    "010_potted_meat_can",
-)
+OBJECTS = FAST_YCB_OBJECTS
 
 
 def _with_hand(scenario: Scenario, hand: HandConfig) -> Scenario:

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from roft_sim.assets.registry import FAST_YCB_OBJECTS
 from roft_sim.errors import ConfigError
 from roft_sim.scenario import Scenario, load_scenario
 from roft_sim.scene.config import CameraSwayConfig, HandConfig
@@ -20,14 +21,6 @@ SHIPPED = sorted(  # scenario files: not the fault presets, not the sweep files
     p
     for p in (REPO / "scenarios").rglob("*.toml")
     if not {"faults", "sweeps"} & set(p.relative_to(REPO).parts)
-)
-FAST_YCB_OBJECTS = (
-    "003_cracker_box",
-    "004_sugar_box",
-    "005_tomato_soup_can",
-    "006_mustard_bottle",
-    "009_gelatin_box",
-    "010_potted_meat_can",
 )
 
 MINIMAL = """

@@ -26,6 +26,7 @@ from roft_sim.assets.objects import (
     ycb_mesh_candidates,
 )
 from roft_sim.assets.registry import (
+    FAST_YCB_OBJECTS,
     NvduAlignment,
     ObjectInfo,
     UnknownObjectError,
@@ -36,6 +37,7 @@ from roft_sim.assets.registry import (
 from roft_sim.errors import AssetNotFoundError, DatasetFormatError
 
 __all__ = [
+    "FAST_YCB_OBJECTS",
     "AssetNotFoundError",
     "DatasetFormatError",
     "NvduAlignment",

@@ -35,11 +35,23 @@ __all__ = [
     "get_object_info",
     "list_objects",
     "object_registry",
+    "FAST_YCB_OBJECTS",
     "load_manifest",
     "MANIFEST_FORMAT_VERSION",
 ]
 
 MANIFEST_FORMAT_VERSION = 1
+
+FAST_YCB_OBJECTS: tuple[str, ...] = (
+    "003_cracker_box",
+    "004_sugar_box",
+    "005_tomato_soup_can",
+    "006_mustard_bottle",
+    "009_gelatin_box",
+    "010_potted_meat_can",
+)
+"""The six objects of Fast-YCB and of the ROFT paper's tables, in the paper's order (each is a
+registry entry)."""
 """Version of ``manifest.toml`` this module reads."""
 
 ShapeClass = Literal["box", "cylinder", "bottle"]

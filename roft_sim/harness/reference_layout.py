@@ -51,6 +51,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from roft_sim.assets.registry import FAST_YCB_OBJECTS
 from roft_sim.datasets.atomic_files import atomic_write_text
 from roft_sim.datasets.base import Sequence as DatasetSequence
 from roft_sim.datasets.fast_ycb_codec import encode_cam_k_json, format_row, pose_row_from_transform
@@ -78,14 +79,7 @@ __all__ = [
 
 REFERENCE_DATASET = "fastycb"
 """The dataset name of the reference's experiments (``config['dataset']``)."""
-REFERENCE_OBJECTS: tuple[str, ...] = (
-    "003_cracker_box",
-    "004_sugar_box",
-    "005_tomato_soup_can",
-    "006_mustard_bottle",
-    "009_gelatin_box",
-    "010_potted_meat_can",
-)
+REFERENCE_OBJECTS: tuple[str, ...] = FAST_YCB_OBJECTS
 """The objects ``evaluation/objects.py`` lists for ``fastycb``: it loads every one of them."""
 REFERENCE_RESULTS_DIR = Path("results") / "ROFT_results" / REFERENCE_DATASET
 REFERENCE_DATASET_DIR = Path("dataset") / "fast-ycb"

@@ -15,17 +15,10 @@ from roft_sim.assets import (
     list_objects,
     object_registry,
 )
-from roft_sim.assets.registry import load_manifest
+from roft_sim.assets.registry import FAST_YCB_OBJECTS, load_manifest
 from roft_sim.errors import AssetNotFoundError, ConfigError
 
-FAST_YCB = (
-    "003_cracker_box",
-    "004_sugar_box",
-    "005_tomato_soup_can",
-    "006_mustard_bottle",
-    "009_gelatin_box",
-    "010_potted_meat_can",
-)
+FAST_YCB = FAST_YCB_OBJECTS  # checked against the shipped manifest below
 
 
 def test_registry_holds_the_six_fast_ycb_objects_in_order():

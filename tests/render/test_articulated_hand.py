@@ -11,6 +11,7 @@ import pytest
 from stand_ins import SinusoidalTrajectory, grid_box_mesh, open_renderer, small_scenario
 
 from roft_sim.assets import sample_surface_points
+from roft_sim.assets.registry import FAST_YCB_OBJECTS
 from roft_sim.geometry import (
     backproject_pixels,
     invert_transform,
@@ -168,14 +169,7 @@ def test_proxy_kind_keeps_the_rigid_capsules():
 @pytest.mark.slow
 @pytest.mark.parametrize(
     "name",
-    [
-        "003_cracker_box",
-        "004_sugar_box",
-        "005_tomato_soup_can",
-        "006_mustard_bottle",
-        "009_gelatin_box",
-        "010_potted_meat_can",
-    ],
+    FAST_YCB_OBJECTS,
 )
 def test_grasp_on_real_ycb_meshes_never_enters_them(name, shared_ycb_dir):
     """The real (concave, 8-30k vertex) scans: no surface point inside the hand over a

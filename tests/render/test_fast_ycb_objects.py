@@ -14,6 +14,7 @@ import trimesh
 from scipy.spatial import cKDTree
 
 from roft_sim.assets import load_object
+from roft_sim.assets.registry import FAST_YCB_OBJECTS
 from roft_sim.geometry import backproject_depth, invert_transform, project_points, transform_points
 from roft_sim.render import SceneRenderer, ground_truth_flow
 from roft_sim.scenario import load_scenario
@@ -21,14 +22,7 @@ from roft_sim.scenario import load_scenario
 pytestmark = [pytest.mark.render, pytest.mark.slow]
 
 REPO = Path(__file__).resolve().parents[2]
-OBJECTS = (
-    "003_cracker_box",
-    "004_sugar_box",
-    "005_tomato_soup_can",
-    "006_mustard_bottle",
-    "009_gelatin_box",
-    "010_potted_meat_can",
-)
+OBJECTS = FAST_YCB_OBJECTS
 FRAMES = (45, 205, 365, 525, 685)
 
 

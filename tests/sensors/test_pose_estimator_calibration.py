@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from roft_sim.assets.objects import load_object
+from roft_sim.assets.registry import FAST_YCB_OBJECTS
 from roft_sim.geometry import matrix_from_rotvec, transform_from_rt
 from roft_sim.metrics import evaluate_sequence, pool_metrics
 from roft_sim.records import PoseTrack
@@ -29,14 +30,7 @@ TOLERANCE = {"add_auc_pct": 0.5, "rmse_t_cm": 0.6, "rmse_a_deg": 0.8}
 8.75 cm, 16.31 deg with per-run standard deviations 0.10 %, 0.17 cm, 0.23 deg, so each
 tolerance is 3.5 to 5 standard deviations (docs/sensors.md)."""
 FRAMES_PER_OBJECT = 10000
-OBJECTS = (
-    "003_cracker_box",
-    "004_sugar_box",
-    "005_tomato_soup_can",
-    "006_mustard_bottle",
-    "009_gelatin_box",
-    "010_potted_meat_can",
-)
+OBJECTS = FAST_YCB_OBJECTS
 
 
 def model_points(name: str, assets_dir: Path | None = None) -> np.ndarray:
