@@ -15,11 +15,12 @@ import mujoco
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from roft_sim.geometry import CameraIntrinsics, as_transform, quat_from_matrix
+from roft_sim.geometry import CameraIntrinsics, as_transform
 from roft_sim.render.camera import mujoco_camera_params
 from roft_sim.render.offscreen import OffscreenRenderer
 from roft_sim.scene.builder import BuiltScene, build_scene
 from roft_sim.scene.config import BackgroundConfig, RenderConfig, SceneConfig, TableConfig
+from roft_sim.scene.mocap import set_mocap_pose
 
 F32 = NDArray[np.float32]
 F64 = NDArray[np.float64]
@@ -104,8 +105,7 @@ class MujocoDepthRenderer:
         built, data, renderer = self._scene_for(intrinsics)
         out = np.empty((T.shape[0],) + intrinsics.shape, dtype=np.float32)
         for i, pose in enumerate(T):
-            data.mocap_pos[built.object_mocap] = pose[:3, 3]
-            data.mocap_quat[built.object_mocap] = quat_from_matrix(pose[:3, :3])
+            set_mocap_pose(data, built.object_mocap, pose)
             mujoco.mj_kinematics(built.model, data)
             mujoco.mj_camlight(built.model, data)
             renderer.update(data, built.camera_id)

@@ -21,7 +21,6 @@ from roft_sim.geometry import (
     CameraIntrinsics,
     invert_transform,
     matrix_from_rotvec,
-    quat_from_matrix,
     relative_motion,
     v_o_from_v_obj,
 )
@@ -32,6 +31,7 @@ from roft_sim.scene.articulated_hand import FingerMotion, HandGrasp, synthesise_
 from roft_sim.scene.builder import BuiltScene, DistractorMesh, build_scene
 from roft_sim.scene.camera_motion import camera_poses
 from roft_sim.scene.config import DistractorConfig
+from roft_sim.scene.mocap import set_mocap_pose
 from roft_sim.sensors.depth_noise import apply_depth_noise
 
 if TYPE_CHECKING:
@@ -272,21 +272,15 @@ class SceneRenderer:
 
     def _pose_scene(self, state: SceneState) -> None:
         b, d = self.built, self._data
-        d.mocap_pos[b.camera_mocap] = state.T_world_cam[:3, 3]
-        d.mocap_quat[b.camera_mocap] = quat_from_matrix(state.T_world_cam[:3, :3])
-        d.mocap_pos[b.object_mocap] = state.T_world_obj[:3, 3]
-        d.mocap_quat[b.object_mocap] = quat_from_matrix(state.T_world_obj[:3, :3])
+        set_mocap_pose(d, b.camera_mocap, state.T_world_cam)
+        set_mocap_pose(d, b.object_mocap, state.T_world_obj)
         if self.grasp is not None:
-            T_world_hand = state.T_world_obj @ self.grasp.T_obj_hand
-            d.mocap_pos[b.hand_mocap] = T_world_hand[:3, 3]
-            d.mocap_quat[b.hand_mocap] = quat_from_matrix(T_world_hand[:3, :3])
+            assert b.hand_mocap is not None
+            set_mocap_pose(d, b.hand_mocap, state.T_world_obj @ self.grasp.T_obj_hand)
         elif b.hand_mocap is not None:  # the proxy's frame is the object's (fixed grasp)
-            d.mocap_pos[b.hand_mocap] = state.T_world_obj[:3, 3]
-            d.mocap_quat[b.hand_mocap] = quat_from_matrix(state.T_world_obj[:3, :3])
+            set_mocap_pose(d, b.hand_mocap, state.T_world_obj)
         for mocap, distractor in zip(b.distractor_mocaps, self.distractors, strict=True):
-            T = distractor.T_world_d(state.t_s)
-            d.mocap_pos[mocap] = T[:3, 3]
-            d.mocap_quat[mocap] = quat_from_matrix(T[:3, :3])
+            set_mocap_pose(d, mocap, distractor.T_world_d(state.t_s))
         mujoco.mj_kinematics(b.model, d)
         if self.finger_motion is not None:
             assert b.hand is not None

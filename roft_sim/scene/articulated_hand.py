@@ -41,6 +41,7 @@ from numpy.typing import NDArray
 
 from roft_sim.geometry import matrix_from_rotvec, quat_from_matrix
 from roft_sim.scene.config import FingerConfig, HandConfig, HandMotionConfig
+from roft_sim.scene.mocap import set_mocap_pose
 
 F64 = NDArray[np.float64]
 
@@ -199,8 +200,7 @@ class HandGrasp:
 
 
 def _place(model: mujoco.MjModel, data: mujoco.MjData, hand: HandModel, T_obj_hand: F64) -> None:
-    data.mocap_pos[hand.mocap] = T_obj_hand[:3, 3]
-    data.mocap_quat[hand.mocap] = quat_from_matrix(T_obj_hand[:3, :3])
+    set_mocap_pose(data, hand.mocap, T_obj_hand)
     mujoco.mj_kinematics(model, data)
 
 
@@ -264,8 +264,7 @@ def synthesise_grasp(
         bisection's resolution (far below 0.1 mm).
     """
     e = np.asarray(half_extents_m, dtype=np.float64)
-    data.mocap_pos[object_mocap] = 0.0
-    data.mocap_quat[object_mocap] = [1.0, 0.0, 0.0, 0.0]
+    set_mocap_pose(data, object_mocap, np.eye(4))
     data.qpos[:] = 0.0
     reach = 0.85 * float(sum(config.fingers[len(config.fingers) // 2].lengths_m))
     a, sa, b, sb = _draw_side(e, reach, rng, camera_dirs_obj)
