@@ -5,7 +5,8 @@ A stress file (the shipped one is ``scenarios/sweeps/stress.toml``, found by
 :func:`shipped_stress_config`) names the grid (trackers, flow sources, seeds, the initial
 condition), the scene template (hand occluder, moving camera), the sequences (captured TUM VI
 rooms and CMU hands from the shared trajectories folder, the continuous and bursty synthetic
-profiles), each tagged TUNING or EVALUATION, and two sizes (``quick`` and ``full``).
+profiles), each tagged TUNING or EVALUATION, and three sizes (``quick``, ``medium`` and
+``full``).
 
 :func:`run_stress` renders every sequence once into ``<out>/data`` (kept: a second run reuses
 it), runs the grid with the sweep machinery into ``<out>/grid`` (parallel, resumable; the cells
@@ -125,7 +126,7 @@ class StressSequence:
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class StressSize:
-    """A size of the benchmark (``[quick]``, ``[full]``)."""
+    """A size of the benchmark (``[quick]``, ``[medium]``, ``[full]``)."""
 
     frames: int
     """Frames per sequence."""
@@ -172,6 +173,9 @@ class StressConfig:
     """The sequences."""
     quick: StressSize
     """The quick size."""
+    medium: StressSize | None = None
+    """The medium size (optional): every sequence, long enough that the start does not
+    dominate, the default flow only."""
     full: StressSize
     """The full size."""
     notes: dict[str, Any] = field(default_factory=dict)
@@ -181,8 +185,10 @@ class StressConfig:
         names = [s.name for s in self.sequences]
         if len(set(names)) != len(names):
             raise ConfigError(f"sequence names must be unique, got {names}")
-        for size_name in ("quick", "full"):
-            size: StressSize = getattr(self, size_name)
+        for size_name in ("quick", "medium", "full"):
+            size: StressSize | None = getattr(self, size_name)
+            if size is None:
+                continue
             unknown = sorted(set(size.sequences) - set(names))
             if unknown:
                 raise ConfigError(f"[{size_name}] names unknown sequences {unknown}; have {names}")
@@ -329,7 +335,7 @@ class StressResult:
     out_dir: Path
     """The benchmark folder."""
     size_name: str
-    """``quick`` or ``full`` (or a custom label)."""
+    """``quick``, ``medium`` or ``full`` (or a custom label)."""
     trackers: tuple[str, ...]
     """The trackers run."""
     notes: tuple[str, ...]

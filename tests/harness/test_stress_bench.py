@@ -57,6 +57,9 @@ def test_shipped_stress_file_covers_the_split_motions_and_flows() -> None:
         config.trackers
     )
     assert config.full.faults == ()  # every shipped preset
+    medium = config.medium  # every sequence, the quick presets, the default flow only
+    assert medium is not None and medium.sequences == () and medium.frames > config.quick.frames
+    assert medium.faults == config.quick.faults and medium.flows == (DEFAULT_FLOW,)
     assert len(list_fault_presets()) >= 6
 
 
