@@ -180,3 +180,37 @@ def test_pose_only_baselines_ignore_a_gated_jump_and_suffer_without_the_gate(sma
             np.stack([e.T_cam_obj for e in with_jump[24:30]]), gt[24:30]
         )
         assert dt_fused.max() > dt_gated.max() + 0.1, (name, dt_fused.max(), dt_gated.max())
+
+
+def test_adaptive_gate_stays_open_until_a_pose_confirms_the_track(small_seq):
+    """A flipped FIRST detection initialises the filter; the correct poses that follow fail
+    the test against it. Until one pose has passed the test they are fused anyway
+    (``open_until_confirmed``), so the track recovers at the next pose; with the rule off they
+    are gated until the streak runs out."""
+    seq = small_seq
+    gt = seq.gt.T_cam_obj
+    no_depth_test = dataclasses.replace(
+        TINY, outlier_rejection=dataclasses.replace(TINY.outlier_rejection, enable=False)
+    )
+    deliveries = [
+        Delivery(0, 0, 0, _flipped(gt[0])),
+        Delivery(6, 12, 1),
+        Delivery(12, 18, 2),
+        Delivery(18, 24, 3),
+    ]
+    masks = paper_schedule(len(seq), first_id=1000)
+    observations = build_observations(seq, poses=deliveries, masks=masks)
+    est = run(RoftTracker(no_depth_test, make_context(seq)), observations)
+    assert [est[k].accepted_pose_ids for k in (12, 18, 24)] == [(1,), (2,), (3,)]
+    _, open_rad = transform_distance(est[23].T_cam_obj[None], gt[23][None])
+    closed = dataclasses.replace(
+        no_depth_test, gate=dataclasses.replace(TINY.gate, open_until_confirmed=False)
+    )
+    est = run(
+        RoftTracker(closed, make_context(seq)),
+        build_observations(seq, poses=deliveries, masks=masks),
+    )
+    assert [est[k].rejected_pose_ids for k in (12, 18)] == [(1,), (2,)]
+    _, closed_rad = transform_distance(est[23].T_cam_obj[None], gt[23][None])
+    # a 180-degree innovation is corrected over two or three poses (the UKF is degenerate at pi)
+    assert np.degrees(open_rad[0]) < 45.0 and np.degrees(closed_rad[0]) > 150.0

@@ -374,6 +374,11 @@ class PoseGateConfig:
     memory_poses: float = 10.0
     """Adaptive gate: time constant of the running mean, in accepted poses (older innovations
     weigh ``(1 - 1 / memory_poses)^age``)."""
+    open_until_confirmed: bool = True
+    """Adaptive gate: until one pose has passed the test, poses that fail it are fused anyway
+    (the track is not confirmed: the pose that initialised the filter may be the outlier, e.g.
+    a flipped first detection, and gating against it locks out the correct poses that
+    follow)."""
 
     def __post_init__(self) -> None:
         _check_positive("gate", "prior_translation_m", (self.prior_translation_m,))

@@ -16,6 +16,11 @@ off by 15 degrees and the flow-integrated orientation drifts, the gate follows, 
 180-degree flip or a 30 cm jump still stands out. Poses accepted only because the rejection
 streak ran out (``max_consecutive_rejections``) do not enter ``s^2``.
 
+Until one pose has passed the test the track is not confirmed (``gate.open_until_confirmed``):
+a pose that fails is fused anyway, because the pose that initialised the filter may itself be
+the outlier (a flipped first detection would otherwise lock out the correct poses that follow
+until the rejection streak runs out).
+
 The spread is a value stored per frame with the beliefs, so a replay from a delayed pose's
 capture frame restores it exactly.
 """
@@ -48,6 +53,8 @@ class InnovationSpread:
     """Mean of ``|nu_r|^2 / 3`` [rad^2]."""
     weight: float
     """Accumulated weight (prior plus decayed accepted poses)."""
+    passed: int = 0
+    """Poses that passed the test so far (0: the track is not confirmed yet)."""
 
 
 def initial_spread(gate: PoseGateConfig) -> InnovationSpread:
@@ -105,4 +112,5 @@ def adaptive_gate_test(
         translation_m2=spread.translation_m2 + (d_t / 3.0 - spread.translation_m2) / weight,
         rotation_rad2=spread.rotation_rad2 + (d_r / 3.0 - spread.rotation_rad2) / weight,
         weight=weight,
+        passed=spread.passed + 1,
     )

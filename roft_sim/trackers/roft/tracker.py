@@ -368,7 +368,8 @@ class RoftTracker:
             P = predicted.P
             variance = (float(np.trace(P[6:9, 6:9])) / 3, float(np.trace(P[9:12, 9:12])) / 3)
             passes, after = adaptive_gate_test(gate, spread, squared, variance)
-            gated = not passes and streak < gate.max_consecutive_rejections
+            confirmed = spread.passed > 0 or not gate.open_until_confirmed
+            gated = not passes and confirmed and streak < gate.max_consecutive_rejections
             spread = after
         else:
             gated = gate_rejects(gate, predicted, pose.p_m, pose.q_wxyz, streak)
