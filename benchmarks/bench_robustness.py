@@ -2,6 +2,7 @@
 motion, a hand occluder, a moving camera and noisy flow (issue 14; docs/running.md).
 
     python benchmarks/bench_robustness.py --quick --out stress-quick --workers 2
+    python benchmarks/bench_robustness.py --medium --out stress-medium --workers 2
     python benchmarks/bench_robustness.py --full --out stress-full --workers 16 \
         --trajectories ../shared/trajectories
 
@@ -39,6 +40,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     sizes = parser.add_mutually_exclusive_group()
     sizes.add_argument("--quick", action="store_true", help="the quick size (default)")
+    sizes.add_argument("--medium", action="store_true", help="the medium size")
     sizes.add_argument("--full", action="store_true", help="the full size")
     parser.add_argument("--config", type=Path, help="stress file (default: the shipped one)")
     parser.add_argument("--out", type=Path, default=Path("stress-out"), help="output folder")
@@ -49,9 +51,12 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     select_gl_backend(os.environ)
-    config = load_stress_config(args.config or shipped_stress_config())
-    size_name = "full" if args.full else "quick"
-    size = config.full if args.full else config.quick
+    config_path = args.config or shipped_stress_config()
+    config = load_stress_config(config_path)
+    size_name = "full" if args.full else "medium" if args.medium else "quick"
+    size = config.full if args.full else config.medium if args.medium else config.quick
+    if size is None:
+        parser.error(f"the stress file {config_path} has no [{size_name}] size")
     trajectories = trajectories_dir_from_args(args.trajectories)
     if not trajectories.is_dir():
         print(

@@ -5,13 +5,16 @@ A stress file (the shipped one is ``scenarios/sweeps/stress.toml``, found by
 :func:`shipped_stress_config`) names the grid (trackers, flow sources, seeds, the initial
 condition), the scene template (hand occluder, moving camera), the sequences (captured TUM VI
 rooms and CMU hands from the shared trajectories folder, the continuous and bursty synthetic
-profiles), each tagged TUNING or EVALUATION, and two sizes (``quick`` and ``full``).
+profiles), each tagged TUNING or EVALUATION, and three sizes (``quick``, ``medium`` and
+``full``).
 
 :func:`run_stress` renders every sequence once into ``<out>/data`` (kept: a second run reuses
 it), runs the grid with the sweep machinery into ``<out>/grid`` (parallel, resumable; the cells
 of a finished grid are never redone) and scores it: trackers x presets x metrics (ADD-AUC, e_t,
 e_a, e_v, e_w, and the NEES of the pose and velocity blocks where a tracker reports
-covariances), pooled per split and per sequence, and a verdict line per split.
+covariances), pooled per split and per sequence, and two verdict lines per split: first on the
+default inputs (the stored NVOF-like flow, :data:`DEFAULT_FLOW`: the issue's criterion), then
+pooled over every flow source.
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ from roft_sim.executors import Executor
 from roft_sim.faults.config import list_fault_presets
 from roft_sim.harness.cells import CELLS_DIR, SweepCell, load_cell_metrics
 from roft_sim.harness.evaluation import estimate_errors
+from roft_sim.harness.inputs import PREFERRED_FLOW_SET
 from roft_sim.harness.options import InitPolicy
 from roft_sim.harness.outputs import ESTIMATES_FILE, load_estimates
 from roft_sim.harness.robust_start import RobustStartConfig
@@ -51,8 +55,10 @@ __all__ = [
     "stress_scenarios",
     "run_stress",
     "score_stress",
+    "StressScores",
     "format_stress_report",
     "METRICS",
+    "DEFAULT_FLOW",
 ]
 
 _log = logging.getLogger(__name__)
@@ -76,6 +82,10 @@ VERDICT_METRICS: dict[str, str] = {
     "rmse_a_deg": "e_a",
 }
 """The metrics the verdict compares, with their names in the verdict line."""
+
+DEFAULT_FLOW = f"stored:{PREFERRED_FLOW_SET}"
+"""The flow source of the default inputs (the stored NVOF-like set a plain ``roft-sim run``
+uses): the first verdict line of each split judges the cells with this flow only."""
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -116,7 +126,7 @@ class StressSequence:
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class StressSize:
-    """A size of the benchmark (``[quick]``, ``[full]``)."""
+    """A size of the benchmark (``[quick]``, ``[medium]``, ``[full]``)."""
 
     frames: int
     """Frames per sequence."""
@@ -163,6 +173,9 @@ class StressConfig:
     """The sequences."""
     quick: StressSize
     """The quick size."""
+    medium: StressSize | None = None
+    """The medium size (optional): every sequence, long enough that the start does not
+    dominate, the default flow only."""
     full: StressSize
     """The full size."""
     notes: dict[str, Any] = field(default_factory=dict)
@@ -172,8 +185,10 @@ class StressConfig:
         names = [s.name for s in self.sequences]
         if len(set(names)) != len(names):
             raise ConfigError(f"sequence names must be unique, got {names}")
-        for size_name in ("quick", "full"):
-            size: StressSize = getattr(self, size_name)
+        for size_name in ("quick", "medium", "full"):
+            size: StressSize | None = getattr(self, size_name)
+            if size is None:
+                continue
             unknown = sorted(set(size.sequences) - set(names))
             if unknown:
                 raise ConfigError(f"[{size_name}] names unknown sequences {unknown}; have {names}")
@@ -294,6 +309,9 @@ class Verdict:
 
     split: str
     """The split judged."""
+    inputs: str = "all flows"
+    """Which cells were judged, as the line names them (e.g. ``default inputs
+    (stored:nvof_1_slow)`` or ``all flows``)."""
     wins: list[str]
     """Presets where it does."""
     fails: list[str]
@@ -303,7 +321,8 @@ class Verdict:
         """The verdict sentence."""
         total = len(self.wins) + len({f.split(":")[0] for f in self.fails})
         text = (
-            f"{self.split.upper()}: {subject} beats {' and '.join(baselines)} on ADD-AUC, e_t, "
+            f"{self.split.upper()}, {self.inputs}: {subject} beats {' and '.join(baselines)} "
+            "on ADD-AUC, e_t, "
             f"e_a under {len(self.wins)}/{total} presets"
         )
         return text + ("; fails: " + "; ".join(self.fails) if self.fails else "")
@@ -316,7 +335,7 @@ class StressResult:
     out_dir: Path
     """The benchmark folder."""
     size_name: str
-    """``quick`` or ``full`` (or a custom label)."""
+    """``quick``, ``medium`` or ``full`` (or a custom label)."""
     trackers: tuple[str, ...]
     """The trackers run."""
     notes: tuple[str, ...]
@@ -325,12 +344,18 @@ class StressResult:
     """Sequence names per split."""
     pooled: dict[tuple[str, str, str], dict[str, float]]
     """``(split, tracker, preset) -> metrics`` pooled over sequences, flows and seeds."""
+    pooled_default: dict[tuple[str, str, str], dict[str, float]]
+    """``(split, tracker, preset) -> metrics`` pooled over sequences and seeds, on the default
+    inputs (:data:`DEFAULT_FLOW`) only."""
     per_sequence: dict[tuple[str, str, str], dict[str, float]]
     """``(sequence, tracker, preset) -> metrics`` pooled over flows and seeds."""
     per_flow: dict[tuple[str, str, str], dict[str, float]]
     """``(split, tracker, flow) -> metrics`` pooled over presets, sequences and seeds."""
     verdicts: dict[str, Verdict]
-    """Per split."""
+    """Per split, pooled over every flow source."""
+    default_verdicts: dict[str, Verdict]
+    """Per split, on the default inputs (:data:`DEFAULT_FLOW`) only (absent for a split
+    without such cells)."""
     presets: tuple[str, ...]
     """The fault presets, in order."""
     flows: tuple[str, ...]
@@ -379,54 +404,41 @@ def _scalars(
     return out
 
 
-def score_stress(
-    cells: Sequence[SweepCell],
-    cells_dir: Path,
-    split_of: Mapping[str, str],
+Scores = dict[tuple[str, str, str], dict[str, float]]
+"""``(group, tracker, value) -> metrics`` (see :class:`StressScores`)."""
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class StressScores:
+    """What :func:`score_stress` computes from the finished cells."""
+
+    pooled: Scores
+    """``(split, tracker, preset)``, pooled over sequences, flows and seeds."""
+    pooled_default: Scores
+    """``(split, tracker, preset)``, pooled over sequences and seeds, default flow only."""
+    per_sequence: Scores
+    """``(sequence, tracker, preset)``, pooled over flows and seeds."""
+    per_flow: Scores
+    """``(split, tracker, flow)``, pooled over presets, sequences and seeds."""
+    verdicts: dict[str, Verdict]
+    """Per split, on every flow source."""
+    default_verdicts: dict[str, Verdict]
+    """Per split, on the default flow only."""
+
+
+def _verdicts(
+    pooled: Scores,
+    splits: Sequence[str],
+    presets: Sequence[str],
     *,
     subject: str,
     baselines: Sequence[str],
-) -> tuple[
-    dict[tuple[str, str, str], dict[str, float]],
-    dict[tuple[str, str, str], dict[str, float]],
-    dict[tuple[str, str, str], dict[str, float]],
-    dict[str, Verdict],
-]:
-    """Pooled metrics per (split, tracker, preset), per (sequence, tracker, preset) and per
-    (split, tracker, flow), and the verdict per split.
-
-    Pooling concatenates the per-frame errors (the reference's ALL row); NEES is the mean over
-    the pooled frames of the pose and velocity blocks of the reported covariance.
-    """
-    parts: dict[tuple[str, ...], list[tuple[SequenceMetrics, Any, Any]]] = {}
-    gt_cache: dict[str, Any] = {}
-    for cell in cells:
-        m = load_cell_metrics(cells_dir, cell.cell_id)
-        if m is None:
-            continue
-        pose, vel = _nees_blocks(cells_dir, cell, gt_cache)
-        split = split_of[cell.sequence_name]
-        entry = (m, pose, vel)
-        parts.setdefault(("split", split, cell.label, cell.fault_label), []).append(entry)
-        parts.setdefault(("seq", cell.sequence_name, cell.label, cell.fault_label), []).append(
-            entry
-        )
-        parts.setdefault(("flow", split, cell.label, cell.options.flow), []).append(entry)
-    Scores = dict[tuple[str, str, str], dict[str, float]]
-    pooled: Scores = {}
-    per_sequence: Scores = {}
-    per_flow: Scores = {}
-    for group, entries in parts.items():
-        scalars = _scalars(
-            concatenate_metrics([e[0] for e in entries]),
-            [e[1] for e in entries if e[1] is not None],
-            [e[2] for e in entries if e[2] is not None],
-        )
-        target = {"split": pooled, "seq": per_sequence, "flow": per_flow}[group[0]]
-        target[(group[1], group[2], group[3])] = scalars
+    inputs: str,
+) -> dict[str, Verdict]:
+    """One :class:`Verdict` per split that has scores: does ``subject`` beat every baseline on
+    every :data:`VERDICT_METRICS` metric, preset by preset."""
     verdicts = {}
-    presets = list(dict.fromkeys(c.fault_label for c in cells))
-    for split in sorted({split_of[c.sequence_name] for c in cells}):
+    for split in splits:
         wins, fails = [], []
         for preset in presets:
             own = pooled.get((split, subject, preset))
@@ -446,8 +458,67 @@ def score_stress(
                 fails.append(f"{preset}: " + ", ".join(lost))
             else:
                 wins.append(preset)
-        verdicts[split] = Verdict(split=split, wins=wins, fails=fails)
-    return pooled, per_sequence, per_flow, verdicts
+        if wins or fails:
+            verdicts[split] = Verdict(split=split, inputs=inputs, wins=wins, fails=fails)
+    return verdicts
+
+
+def score_stress(
+    cells: Sequence[SweepCell],
+    cells_dir: Path,
+    split_of: Mapping[str, str],
+    *,
+    subject: str,
+    baselines: Sequence[str],
+    default_flow: str = DEFAULT_FLOW,
+) -> StressScores:
+    """Pooled metrics per (split, tracker, preset) over every flow and on ``default_flow`` only,
+    per (sequence, tracker, preset) and per (split, tracker, flow), and the two verdicts per
+    split (default flow; every flow).
+
+    Pooling concatenates the per-frame errors (the reference's ALL row); NEES is the mean over
+    the pooled frames of the pose and velocity blocks of the reported covariance.
+    """
+    parts: dict[tuple[str, ...], list[tuple[SequenceMetrics, Any, Any]]] = {}
+    gt_cache: dict[str, Any] = {}
+    for cell in cells:
+        m = load_cell_metrics(cells_dir, cell.cell_id)
+        if m is None:
+            continue
+        pose, vel = _nees_blocks(cells_dir, cell, gt_cache)
+        split = split_of[cell.sequence_name]
+        entry = (m, pose, vel)
+        parts.setdefault(("split", split, cell.label, cell.fault_label), []).append(entry)
+        if cell.options.flow == default_flow:
+            parts.setdefault(("default", split, cell.label, cell.fault_label), []).append(entry)
+        parts.setdefault(("seq", cell.sequence_name, cell.label, cell.fault_label), []).append(
+            entry
+        )
+        parts.setdefault(("flow", split, cell.label, cell.options.flow), []).append(entry)
+    tables: dict[str, Scores] = {"split": {}, "default": {}, "seq": {}, "flow": {}}
+    for group, entries in parts.items():
+        scalars = _scalars(
+            concatenate_metrics([e[0] for e in entries]),
+            [e[1] for e in entries if e[1] is not None],
+            [e[2] for e in entries if e[2] is not None],
+        )
+        tables[group[0]][(group[1], group[2], group[3])] = scalars
+    presets = list(dict.fromkeys(c.fault_label for c in cells))
+    splits = sorted({split_of[c.sequence_name] for c in cells})
+
+    def judge(table: Scores, inputs: str) -> dict[str, Verdict]:
+        return _verdicts(
+            table, splits, presets, subject=subject, baselines=baselines, inputs=inputs
+        )
+
+    return StressScores(
+        pooled=tables["split"],
+        pooled_default=tables["default"],
+        per_sequence=tables["seq"],
+        per_flow=tables["flow"],
+        verdicts=judge(tables["split"], "all flows"),
+        default_verdicts=judge(tables["default"], f"default inputs ({default_flow})"),
+    )
 
 
 def run_stress(
@@ -498,7 +569,7 @@ def run_stress(
     )
     result = run_sweep(sweep, out / "grid", executor=executor, progress=progress, plots=False)
     split_of = {s.name: s.split for s in config.sequences}
-    pooled, per_sequence, per_flow, verdicts = score_stress(
+    scores = score_stress(
         result.cells,
         out / "grid" / CELLS_DIR,
         split_of,
@@ -515,10 +586,12 @@ def run_stress(
         trackers=tuple(trackers),
         notes=tuple(notes),
         splits=splits,
-        pooled=pooled,
-        per_sequence=per_sequence,
-        per_flow=per_flow,
-        verdicts=verdicts,
+        pooled=scores.pooled,
+        pooled_default=scores.pooled_default,
+        per_sequence=scores.per_sequence,
+        per_flow=scores.per_flow,
+        verdicts=scores.verdicts,
+        default_verdicts=scores.default_verdicts,
         presets=tuple(faults),
         flows=tuple(flows),
     )
@@ -581,6 +654,10 @@ def format_stress_report(
         rows = _rows(result.pooled, split, result.presets, result.trackers)
         title = f"### {split.upper()}: pooled over sequences, flows and seeds"
         out += _table(title, rows, "preset")
+        rows = _rows(result.pooled_default, split, result.presets, result.trackers)
+        if rows:
+            title = f"### {split.upper()}: default inputs ({DEFAULT_FLOW}), pooled over sequences"
+            out += _table(title + " and seeds", rows, "preset")
         rows = _rows(result.per_flow, split, result.flows, result.trackers)
         out += _table(f"### {split.upper()}: per flow source (pooled over presets)", rows, "flow")
         if per_sequence:
@@ -589,7 +666,8 @@ def format_stress_report(
                 out += _table(f"### {split.upper()} sequence {name}", rows, "preset")
     out.append("## Verdict")
     out.append("")
-    for split in ("tuning", "evaluation"):
-        if split in result.verdicts:
-            out.append(result.verdicts[split].line(subject, baselines))
+    for verdicts in (result.default_verdicts, result.verdicts):  # the issue's criterion first
+        for split in ("tuning", "evaluation"):
+            if split in verdicts:
+                out.append(verdicts[split].line(subject, baselines))
     return "\n".join(out) + "\n"

@@ -10,6 +10,7 @@ from observation_schedules import (
     Delivery,
     build_observations,
     make_context,
+    paper_schedule,
     run,
 )
 from test_roft_tracker import GATED, TINY, _perturbed
@@ -17,6 +18,11 @@ from test_roft_tracker import GATED, TINY, _perturbed
 from roft_sim.geometry import matrix_from_rotvec, transform_distance, transform_from_rt
 from roft_sim.trackers import create_tracker, get_tracker_spec
 from roft_sim.trackers.roft import PoseGateConfig, RoftTracker
+from roft_sim.trackers.roft.innovation_gate import (
+    InnovationSpread,
+    adaptive_gate_test,
+    initial_spread,
+)
 
 
 def _flipped(T: np.ndarray) -> np.ndarray:
@@ -78,10 +84,69 @@ def test_gate_off_is_the_reference_behaviour(small_seq):
     seq = small_seq
     deliveries = [Delivery(0, 0, 0), Delivery(6, 12, 1, _flipped(seq.gt.T_cam_obj[6]))]
     off = dataclasses.replace(
-        TINY, outlier_rejection=dataclasses.replace(TINY.outlier_rejection, enable=False)
+        TINY,
+        outlier_rejection=dataclasses.replace(TINY.outlier_rejection, enable=False),
+        gate=PoseGateConfig(),
     )
     est = run(RoftTracker(off, make_context(seq)), build_observations(seq, poses=deliveries))
     assert est[12].accepted_pose_ids == (1,)
+
+
+def test_default_adaptive_gate_rejects_a_flip_and_a_jump_the_depth_test_lets_through(small_seq):
+    """ROFT's default gate (adaptive) refuses a 180-degree flip and a 30 cm jump and accepts
+    the good poses around them; with the gate off (the reference) both are fused. Masks arrive
+    as in the paper, so the flow keeps the prediction close to the truth."""
+    seq = small_seq
+    gt = seq.gt.T_cam_obj
+    assert TINY.gate.enable and TINY.gate.adaptive
+    no_depth_test = dataclasses.replace(
+        TINY, outlier_rejection=dataclasses.replace(TINY.outlier_rejection, enable=False)
+    )
+    deliveries = [
+        Delivery(0, 0, 0),
+        Delivery(6, 12, 1),
+        Delivery(12, 18, 2, _flipped(gt[12])),
+        Delivery(18, 24, 3, _jumped(gt[18])),
+        Delivery(24, 30, 4),
+    ]
+    masks = paper_schedule(len(seq), first_id=1000)
+    est = run(
+        RoftTracker(no_depth_test, make_context(seq)),
+        build_observations(seq, poses=deliveries, masks=masks),
+    )
+    assert est[12].accepted_pose_ids == (1,)
+    assert est[18].rejected_pose_ids == (2,) and est[24].rejected_pose_ids == (3,)
+    assert est[30].accepted_pose_ids == (4,)
+    ungated = dataclasses.replace(no_depth_test, gate=PoseGateConfig())
+    est = run(
+        RoftTracker(ungated, make_context(seq)),
+        build_observations(seq, poses=deliveries, masks=masks),
+    )
+    assert est[18].accepted_pose_ids == (2,) and est[24].accepted_pose_ids == (3,)
+
+
+def test_adaptive_gate_bound_follows_the_spread_of_accepted_innovations():
+    """A 30-degree innovation passes after a run of 15-degree ones and fails after a run of
+    2-degree ones; a rejected innovation leaves the spread unchanged; the filter's own predicted
+    variance widens the gate."""
+    gate = PoseGateConfig(enable=True, adaptive=True)
+
+    def after_history(angle_deg: float) -> InnovationSpread:
+        spread = initial_spread(gate)
+        per_axis = np.radians(angle_deg) ** 2
+        for _ in range(20):
+            passes, spread = adaptive_gate_test(gate, spread, (1e-4, per_axis), (0.0, 0.0))
+            assert passes
+        return spread
+
+    test_30deg = (1e-4, np.radians(30.0) ** 2)
+    wide, narrow = after_history(15.0), after_history(2.0)
+    assert adaptive_gate_test(gate, wide, test_30deg, (0.0, 0.0))[0]
+    passes, unchanged = adaptive_gate_test(gate, narrow, test_30deg, (0.0, 0.0))
+    assert not passes and unchanged == narrow
+    assert adaptive_gate_test(gate, narrow, test_30deg, (0.0, np.radians(10.0) ** 2))[0]
+    jump = (0.3**2, 1e-4)
+    assert not adaptive_gate_test(gate, wide, jump, (0.0, 0.0))[0]
 
 
 def test_pose_only_baselines_ignore_a_gated_jump_and_suffer_without_the_gate(small_seq):
@@ -115,3 +180,37 @@ def test_pose_only_baselines_ignore_a_gated_jump_and_suffer_without_the_gate(sma
             np.stack([e.T_cam_obj for e in with_jump[24:30]]), gt[24:30]
         )
         assert dt_fused.max() > dt_gated.max() + 0.1, (name, dt_fused.max(), dt_gated.max())
+
+
+def test_adaptive_gate_stays_open_until_a_pose_confirms_the_track(small_seq):
+    """A flipped FIRST detection initialises the filter; the correct poses that follow fail
+    the test against it. Until one pose has passed the test they are fused anyway
+    (``open_until_confirmed``), so the track recovers at the next pose; with the rule off they
+    are gated until the streak runs out."""
+    seq = small_seq
+    gt = seq.gt.T_cam_obj
+    no_depth_test = dataclasses.replace(
+        TINY, outlier_rejection=dataclasses.replace(TINY.outlier_rejection, enable=False)
+    )
+    deliveries = [
+        Delivery(0, 0, 0, _flipped(gt[0])),
+        Delivery(6, 12, 1),
+        Delivery(12, 18, 2),
+        Delivery(18, 24, 3),
+    ]
+    masks = paper_schedule(len(seq), first_id=1000)
+    observations = build_observations(seq, poses=deliveries, masks=masks)
+    est = run(RoftTracker(no_depth_test, make_context(seq)), observations)
+    assert [est[k].accepted_pose_ids for k in (12, 18, 24)] == [(1,), (2,), (3,)]
+    _, open_rad = transform_distance(est[23].T_cam_obj[None], gt[23][None])
+    closed = dataclasses.replace(
+        no_depth_test, gate=dataclasses.replace(TINY.gate, open_until_confirmed=False)
+    )
+    est = run(
+        RoftTracker(closed, make_context(seq)),
+        build_observations(seq, poses=deliveries, masks=masks),
+    )
+    assert [est[k].rejected_pose_ids for k in (12, 18)] == [(1,), (2,)]
+    _, closed_rad = transform_distance(est[23].T_cam_obj[None], gt[23][None])
+    # a 180-degree innovation is corrected over two or three poses (the UKF is degenerate at pi)
+    assert np.degrees(open_rad[0]) < 45.0 and np.degrees(closed_rad[0]) > 150.0

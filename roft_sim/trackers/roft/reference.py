@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 
 from roft_sim.trackers.roft.config import (
     MaskSyncConfig,
+    PoseGateConfig,
     PoseSyncConfig,
     PoseUKFConfig,
     RoftConfig,
@@ -87,6 +88,10 @@ def _reference_pose() -> PoseUKFConfig:
     )
 
 
+def _reference_gate() -> PoseGateConfig:
+    return PoseGateConfig(enable=False)  # no pose gate: only the depth test (report 6)
+
+
 def _reference_sync() -> PoseSyncConfig:
     # period = delay = 6, the buffers hold 6 frames (report 2.1, 5.1-5.2)
     return PoseSyncConfig(horizon_frames=6)
@@ -104,6 +109,7 @@ def reference_config() -> RoftConfig:
         mask=_reference_mask(),
         velocity=_reference_velocity(),
         pose=_reference_pose(),
+        gate=_reference_gate(),
         sync=_reference_sync(),
     )
 
@@ -116,6 +122,7 @@ class RoftReferenceConfig(RoftConfig):
     mask: MaskSyncConfig = field(default_factory=_reference_mask)
     velocity: VelocityKFConfig = field(default_factory=_reference_velocity)
     pose: PoseUKFConfig = field(default_factory=_reference_pose)
+    gate: PoseGateConfig = field(default_factory=_reference_gate)
     sync: PoseSyncConfig = field(default_factory=_reference_sync)
 
 
@@ -202,6 +209,12 @@ DEVIATIONS: tuple[Deviation, ...] = (
         "interval_velocity",
         "the UKF integrates the pose with the new (interval-mean) velocity the flow measures",
         _restore("pose", "integrate_interval_velocity"),
+    ),
+    Deviation(
+        "adaptive_gate",
+        "poses whose innovation is far beyond the spread of the accepted ones are rejected "
+        "(chi-square gate on an adapted variance; flips and jumps the depth test lets through)",
+        lambda c: _rep(c, gate=_DEFAULT.gate),
     ),
 )
 """The deviations in the order the attribution table adds them; applying all of them to

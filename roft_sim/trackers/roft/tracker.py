@@ -42,6 +42,12 @@ from roft_sim.records import (
 )
 from roft_sim.trackers.base import TrackerContext
 from roft_sim.trackers.roft.config import RoftConfig
+from roft_sim.trackers.roft.innovation_gate import (
+    InnovationSpread,
+    adaptive_gate_test,
+    initial_spread,
+    squared_innovations,
+)
 from roft_sim.trackers.roft.mask_sync import (
     MaskSynchroniser,
     PixelSet,
@@ -149,6 +155,8 @@ class RoftTracker:
         self._frames: dict[int, _Frame] = {}
         self._beliefs: dict[int, PoseBelief] = {}
         self._gate_streaks: dict[int, int] = {}  # frame -> poses gated in a row after it
+        # frame -> the adaptive gate's innovation spread after it
+        self._gate_spreads: dict[int, InnovationSpread] = {}
         self._poses: dict[int, list[_Pose]] = {}
         self._known_ids: dict[int, int] = {}  # detection_id -> capture frame
         self._decisions: dict[int, bool] = {}  # detection_id -> accepted
@@ -301,6 +309,7 @@ class RoftTracker:
                 for j in [j for j in self._beliefs if j >= c - 1]:
                     del self._beliefs[j]
                     self._gate_streaks.pop(j, None)
+                    self._gate_spreads.pop(j, None)
                 self._beliefs[c - 1] = prior
                 return c, prior
             if init is None:
@@ -319,12 +328,14 @@ class RoftTracker:
         frame: _Frame,
         first: bool,
         streak: int,
-    ) -> tuple[PoseBelief, int]:
+        spread: InnovationSpread,
+    ) -> tuple[PoseBelief, int, InnovationSpread]:
         """One pose correction (with the frame's velocity on the first pose of the frame),
         behind the gate and the depth outlier test unless the pose initialised the filter.
 
         Returns:
-            The corrected belief and the number of poses gated in a row after this one.
+            The corrected belief, the number of poses gated in a row after this one and the
+            adaptive gate's innovation spread after it.
         """
         twist_cov = frame.twist_cov if twist is not None else None
         if pose is self._init_pose:
@@ -338,14 +349,26 @@ class RoftTracker:
                     q_meas_wxyz=pose.q_wxyz,
                 ),
                 0,
+                spread,
             )
         without_pose = (
             self._ukf.correct(predicted, twist=twist, twist_cov=twist_cov) if first else predicted
         )
-        if gate_rejects(self._config.gate, predicted, pose.p_m, pose.q_wxyz, streak):
+        gate = self._config.gate
+        if gate.enable and gate.adaptive:
+            squared = squared_innovations(predicted.x[6:9], predicted.q, pose.p_m, pose.q_wxyz)
+            P = predicted.P
+            variance = (float(np.trace(P[6:9, 6:9])) / 3, float(np.trace(P[9:12, 9:12])) / 3)
+            passes, after = adaptive_gate_test(gate, spread, squared, variance)
+            confirmed = spread.passed > 0 or not gate.open_until_confirmed
+            gated = not passes and confirmed and streak < gate.max_consecutive_rejections
+            spread = after
+        else:
+            gated = gate_rejects(gate, predicted, pose.p_m, pose.q_wxyz, streak)
+        if gated:
             self._decisions[pose.detection_id] = False
             self._gated.add(pose.detection_id)
-            return without_pose, streak + 1
+            return without_pose, streak + 1, spread
         self._gated.discard(pose.detection_id)
         with_pose = self._ukf.correct(
             predicted,
@@ -357,14 +380,14 @@ class RoftTracker:
         test = self._outlier_test
         if test is None:
             self._decisions[pose.detection_id] = True
-            return with_pose, 0
+            return with_pose, 0, spread
         reject = test.reject(
             transform_from_pq(with_pose.x[6:9], with_pose.q),
             transform_from_pq(without_pose.x[6:9], without_pose.q),
             frame.samples,
         )
         self._decisions[pose.detection_id] = not reject
-        return (without_pose if reject else with_pose), 0
+        return (without_pose if reject else with_pose), 0, spread
 
     def _advance(self, j: int, prior: PoseBelief) -> PoseBelief:
         """Predict from j-1 to j and correct with everything known about frame j (also stores
@@ -376,15 +399,17 @@ class RoftTracker:
         twist = frame.twist if self._config.use_velocity else None
         twist_cov = frame.twist_cov if twist is not None else None
         streak = self._gate_streaks.get(j - 1, 0)
+        spread = self._gate_spreads.get(j - 1) or initial_spread(self._config.gate)
         poses = sorted(self._poses.get(j, []), key=lambda p: p.detection_id)
         if not self._config.use_pose or not poses:
             belief = self._ukf.correct(belief, twist=twist, twist_cov=twist_cov)
         else:
             for i, pose in enumerate(poses):
-                belief, streak = self._correct_with_pose(
-                    belief, twist if i == 0 else None, pose, frame, i == 0, streak
+                belief, streak, spread = self._correct_with_pose(
+                    belief, twist if i == 0 else None, pose, frame, i == 0, streak, spread
                 )
         self._gate_streaks[j] = streak
+        self._gate_spreads[j] = spread
         return belief
 
     # ------------------------------------------------------------------ the protocol
@@ -500,6 +525,8 @@ class RoftTracker:
             del self._beliefs[j]
         for j in [j for j in self._gate_streaks if j < oldest - 1]:
             del self._gate_streaks[j]
+        for j in [j for j in self._gate_spreads if j < oldest - 1]:
+            del self._gate_spreads[j]
         for c in [c for c in self._poses if c < oldest]:
             for pose in self._poses.pop(c):
                 self._known_ids.pop(pose.detection_id, None)
