@@ -20,6 +20,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from roft_sim.trackers.roft.config import (
+    CovarianceScaleConfig,
     MaskSyncConfig,
     PoseSyncConfig,
     PoseUKFConfig,
@@ -64,6 +65,7 @@ def _reference_velocity() -> VelocityKFConfig:
         skip_stale_velocity=False,  # the KF mean is fed to the UKF every frame (report 1.3)
         twist_covariance_to_ukf=False,  # fixed R_v, R_w in the UKF (report 4.4)
         midpoint_timing=False,  # the flow k-1 -> k is the velocity at k (report 3.2)
+        midpoint_rate="difference",  # unused with midpoint_timing off
     )
 
 
@@ -92,6 +94,11 @@ def _reference_sync() -> PoseSyncConfig:
     return PoseSyncConfig(horizon_frames=6)
 
 
+def _reference_covariance_scale() -> CovarianceScaleConfig:
+    # the UKF's covariance is reported as it is (report 4.4: no adaptation of P, Q or R)
+    return CovarianceScaleConfig(enable=False)
+
+
 def reference_config() -> RoftConfig:
     """ROFT as the C++ reference runs it (config_fast_ycb.cfg with the test scripts' values).
 
@@ -105,6 +112,7 @@ def reference_config() -> RoftConfig:
         velocity=_reference_velocity(),
         pose=_reference_pose(),
         sync=_reference_sync(),
+        covariance_scale=_reference_covariance_scale(),
     )
 
 
@@ -117,6 +125,7 @@ class RoftReferenceConfig(RoftConfig):
     velocity: VelocityKFConfig = field(default_factory=_reference_velocity)
     pose: PoseUKFConfig = field(default_factory=_reference_pose)
     sync: PoseSyncConfig = field(default_factory=_reference_sync)
+    covariance_scale: CovarianceScaleConfig = field(default_factory=_reference_covariance_scale)
 
 
 @dataclass(frozen=True, slots=True)
@@ -202,6 +211,18 @@ DEVIATIONS: tuple[Deviation, ...] = (
         "interval_velocity",
         "the UKF integrates the pose with the new (interval-mean) velocity the flow measures",
         _restore("pose", "integrate_interval_velocity"),
+    ),
+    Deviation(
+        "midpoint_twist",
+        "the reported twist is carried from the interval's midpoint to the frame with a "
+        "filtered rate (the UKF still gets the interval mean)",
+        _restore("velocity", "midpoint_timing", "midpoint_rate"),
+    ),
+    Deviation(
+        "covariance_scale",
+        "the reported covariance is scaled per block by the running mean NIS per dimension "
+        "(the estimates are unchanged)",
+        _restore("covariance_scale", "enable"),
     ),
 )
 """The deviations in the order the attribution table adds them; applying all of them to

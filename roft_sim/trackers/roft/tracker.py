@@ -25,6 +25,7 @@ the horizon), so the result does not depend on the order of arrival.
 
 from __future__ import annotations
 
+import dataclasses
 from collections import Counter
 from dataclasses import dataclass
 
@@ -42,6 +43,14 @@ from roft_sim.records import (
 )
 from roft_sim.trackers.base import TrackerContext
 from roft_sim.trackers.roft.config import RoftConfig
+from roft_sim.trackers.roft.covariance_scale import (
+    BlockScales,
+    normalised_innovation_squared,
+    pose_innovation,
+    scaled_estimate_covariance,
+    twist_difference,
+    twist_noise,
+)
 from roft_sim.trackers.roft.mask_sync import (
     MaskSynchroniser,
     PixelSet,
@@ -149,6 +158,7 @@ class RoftTracker:
         self._frames: dict[int, _Frame] = {}
         self._beliefs: dict[int, PoseBelief] = {}
         self._gate_streaks: dict[int, int] = {}  # frame -> poses gated in a row after it
+        self._scales: dict[int, BlockScales] = {}  # frame -> variance scales after it
         self._poses: dict[int, list[_Pose]] = {}
         self._known_ids: dict[int, int] = {}  # detection_id -> capture frame
         self._decisions: dict[int, bool] = {}  # detection_id -> accepted
@@ -301,6 +311,7 @@ class RoftTracker:
                 for j in [j for j in self._beliefs if j >= c - 1]:
                     del self._beliefs[j]
                     self._gate_streaks.pop(j, None)
+                    self._scales.pop(j, None)
                 self._beliefs[c - 1] = prior
                 return c, prior
             if init is None:
@@ -384,16 +395,76 @@ class RoftTracker:
         twist = frame.twist if self._config.use_velocity else None
         twist_cov = frame.twist_cov if twist is not None else None
         streak = self._gate_streaks.get(j - 1, 0)
+        scales = self._scales.get(j - 1, BlockScales.initial())
+        if twist is not None:
+            scales = self._with_twist_change(scales, j, twist, twist_cov)
         poses = sorted(self._poses.get(j, []), key=lambda p: p.detection_id)
         if not self._config.use_pose or not poses:
             belief = self._ukf.correct(belief, twist=twist, twist_cov=twist_cov)
         else:
             for i, pose in enumerate(poses):
+                before = belief
                 belief, streak = self._correct_with_pose(
                     belief, twist if i == 0 else None, pose, frame, i == 0, streak
                 )
+                if self._decisions.get(pose.detection_id) and pose is not self._init_pose:
+                    scales = self._with_pose_nis(scales, before, pose)
         self._gate_streaks[j] = streak
+        self._scales[j] = scales
         return belief
+
+    # ------------------------------------------------------------------ reported covariance
+    def _with_twist_change(
+        self, scales: BlockScales, j: int, twist: F64, twist_cov: F64 | None
+    ) -> BlockScales:
+        """``scales`` with the velocity blocks updated by the change of the twist measurement
+        from frame j-1 to j, normalised by the two measurements' noise (none without a twist
+        at j-1)."""
+        cfg = self._config.covariance_scale
+        previous = self._frames.get(j - 1)
+        if not cfg.enable or previous is None or previous.twist is None:
+            return scales
+        pose_cfg = self._config.pose
+        d, S = twist_difference(
+            twist,
+            twist_noise(pose_cfg, twist_cov),
+            previous.twist,
+            twist_noise(pose_cfg, previous.twist_cov),
+        )
+        memory = cfg.memory_measurements
+        return dataclasses.replace(
+            scales,
+            v=scales.v.updated(normalised_innovation_squared(d[:3], S[:3, :3]), 3, memory),
+            w=scales.w.updated(normalised_innovation_squared(d[3:], S[3:, 3:]), 3, memory),
+        )
+
+    def _with_pose_nis(self, scales: BlockScales, before: PoseBelief, pose: _Pose) -> BlockScales:
+        """``scales`` with the pose block updated by a fused pose's NIS at ``before`` (the
+        belief before that pose's correction)."""
+        cfg = self._config.covariance_scale
+        if not cfg.enable:
+            return scales
+        nu, S = pose_innovation(before, pose.p_m, pose.q_wxyz, self._config.pose)
+        memory = cfg.memory_measurements
+        return dataclasses.replace(
+            scales,
+            t=scales.t.updated(normalised_innovation_squared(nu[:3], S[:3, :3]), 3, memory),
+            r=scales.r.updated(normalised_innovation_squared(nu[3:], S[3:, 3:]), 3, memory),
+        )
+
+    def _reported(self, estimate: Estimate) -> Estimate:
+        """The estimate with its covariance scaled by the variance scales of its frame."""
+        cfg = self._config.covariance_scale
+        scales = self._scales.get(estimate.k)
+        if not cfg.enable or scales is None or estimate.covariance is None:
+            return estimate
+        cov = scaled_estimate_covariance(np.asarray(estimate.covariance), scales, cfg)
+        factors = dict(zip(("t", "r", "v", "w"), scales.factors().tolist(), strict=True))
+        diagnostics = {
+            **estimate.diagnostics,
+            **{f"covariance_scale_{name}": f for name, f in factors.items()},
+        }
+        return dataclasses.replace(estimate, covariance=cov, diagnostics=diagnostics)
 
     # ------------------------------------------------------------------ the protocol
     def step(self, observation: Observation) -> Estimate:
@@ -438,14 +509,16 @@ class RoftTracker:
                 dropped_pose_ids=tuple(dropped_ids),
                 diagnostics=diagnostics,
             )
-        return estimate_from_belief(
-            k,
-            estimate_belief,
-            spatial_twist=spatial_twist,
-            accepted_pose_ids=accepted,
-            rejected_pose_ids=rejected,
-            dropped_pose_ids=tuple(dropped_ids),
-            diagnostics=diagnostics,
+        return self._reported(
+            estimate_from_belief(
+                k,
+                estimate_belief,
+                spatial_twist=spatial_twist,
+                accepted_pose_ids=accepted,
+                rejected_pose_ids=rejected,
+                dropped_pose_ids=tuple(dropped_ids),
+                diagnostics=diagnostics,
+            )
         )
 
     def _frame_interval_s(self, obs: Observation) -> float:
@@ -508,6 +581,8 @@ class RoftTracker:
             del self._beliefs[j]
         for j in [j for j in self._gate_streaks if j < oldest - 1]:
             del self._gate_streaks[j]
+        for j in [j for j in self._scales if j < oldest - 1]:
+            del self._scales[j]
         for c in [c for c in self._poses if c < oldest]:
             for pose in self._poses.pop(c):
                 self._known_ids.pop(pose.detection_id, None)
