@@ -411,6 +411,12 @@ class CovarianceScaleConfig:
     enable: bool = True
     """Scale the reported covariance; False reports the UKF's covariance as it is (the
     reference)."""
+    pose_block: Literal["scale", "excess"] = "excess"
+    """How the pose block (t, r) is calibrated: ``scale`` multiplies it by the mean NIS per
+    dimension of the fused poses (right when P, Q and R are off by one common factor);
+    ``excess`` estimates the poses' true noise by covariance matching (the configured R times
+    a running factor) and adds the covariance the filter's gain leaves unaccounted (Joseph form
+    with the estimated noise), right when the pose noise alone is mis-specified."""
     memory_measurements: float = 20.0
     """Memory of the forgetting-factor means [measurements of the block]: forgetting factor
     ``1 - 1 / memory``."""

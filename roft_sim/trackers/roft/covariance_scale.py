@@ -50,6 +50,7 @@ __all__ = [
     "twist_innovation",
     "pose_innovation",
     "scaled_estimate_covariance",
+    "pose_excess_after",
     "twist_noise",
 ]
 
@@ -93,11 +94,14 @@ class BlockScales:
     r: ScaleEstimate
     v: ScaleEstimate
     w: ScaleEstimate
+    pose_excess: F64
+    """(6, 6) with ``pose_block = "excess"``: the covariance of the pose (t, r) the filter's
+    own misses (its true error covariance minus its covariance), from the last fused pose."""
 
     @staticmethod
     def initial() -> BlockScales:
         one = ScaleEstimate.prior(3)
-        return BlockScales(one, one, one, one)
+        return BlockScales(one, one, one, one, np.zeros((6, 6)))
 
     def factors(self) -> F64:
         """(4,) the factors of (t, r, v, w)."""
@@ -182,6 +186,27 @@ def pose_innovation(
     return nu, 0.5 * (S + S.T)
 
 
+def pose_excess_after(
+    excess: F64, predicted: F64, noise: F64, noise_scale: tuple[float, float]
+) -> F64:
+    """The excess covariance (6, 6) after a pose correction with the filter's gain.
+
+    The filter fuses a pose with ``K = P (P + R)^-1`` (``P`` = ``predicted``, its (t, r)
+    block; ``R`` = ``noise``, the configured pose noise) and believes ``P+ = (I - K) P``. When
+    its prediction's true error covariance is ``P + excess`` and the pose's is ``R_hat`` (the
+    configured R with its t and r blocks multiplied by ``noise_scale``), the true covariance
+    after the same correction is ``(I - K)(P + excess)(I - K)^T + K R_hat K^T`` (the Joseph
+    form, valid for any gain); the new excess is the difference.
+    """
+    K = predicted @ np.linalg.inv(predicted + noise)
+    I_K = np.eye(6) - K
+    r_hat = noise * np.repeat(np.asarray(noise_scale, dtype=np.float64), 3)[:, None]
+    true = I_K @ (predicted + excess) @ I_K.T + K @ r_hat @ K.T
+    believed = I_K @ predicted
+    out: F64 = true - 0.5 * (believed + believed.T)
+    return 0.5 * (out + out.T)
+
+
 def scaled_estimate_covariance(
     covariance: F64, scales: BlockScales, config: CovarianceScaleConfig
 ) -> F64:
@@ -192,6 +217,10 @@ def scaled_estimate_covariance(
     inflate the filter's own velocity covariance, never shrink it."""
     lower = np.array([config.min_factor, config.min_factor, 1.0, 1.0])
     s = np.clip(scales.factors(), lower, config.max_factor)
+    if config.pose_block == "excess":
+        s[:2] = 1.0
     d = np.repeat(np.sqrt(s), 3)
     out: F64 = covariance * d[:, None] * d[None, :]
+    if config.pose_block == "excess":
+        out[:6, :6] += scales.pose_excess
     return 0.5 * (out + out.T)  # exactly symmetric (the products round differently)

@@ -46,6 +46,7 @@ from roft_sim.trackers.roft.config import RoftConfig
 from roft_sim.trackers.roft.covariance_scale import (
     BlockScales,
     normalised_innovation_squared,
+    pose_excess_after,
     pose_innovation,
     scaled_estimate_covariance,
     twist_difference,
@@ -439,17 +440,38 @@ class RoftTracker:
         )
 
     def _with_pose_nis(self, scales: BlockScales, before: PoseBelief, pose: _Pose) -> BlockScales:
-        """``scales`` with the pose block updated by a fused pose's NIS at ``before`` (the
-        belief before that pose's correction)."""
+        """``scales`` with the pose blocks updated by a fused pose's innovation at ``before``
+        (the belief before that pose's correction)."""
         cfg = self._config.covariance_scale
         if not cfg.enable:
             return scales
         nu, S = pose_innovation(before, pose.p_m, pose.q_wxyz, self._config.pose)
         memory = cfg.memory_measurements
+        if cfg.pose_block == "scale":
+            return dataclasses.replace(
+                scales,
+                t=scales.t.updated(normalised_innovation_squared(nu[:3], S[:3, :3]), 3, memory),
+                r=scales.r.updated(normalised_innovation_squared(nu[3:], S[3:, 3:]), 3, memory),
+            )
+        # covariance matching of the pose noise: E[nu nu^T] = P + excess + R_true
+        P = before.P[6:12, 6:12]
+        pc = self._config.pose
+        R = np.diag(np.concatenate([pc.meas_cov_x, pc.meas_cov_q]))
+        excess = scales.pose_excess
+        samples = []
+        for block in (slice(0, 3), slice(3, 6)):
+            spread = float(nu[block] @ nu[block]) - float(
+                np.trace(P[block, block] + excess[block, block])
+            )
+            samples.append(spread / (float(np.trace(R[block, block])) / 3.0))
+        t_scale = scales.t.updated(samples[0], 3, memory)
+        r_scale = scales.r.updated(samples[1], 3, memory)
+        factors = np.clip([t_scale.factor, r_scale.factor], cfg.min_factor, cfg.max_factor)
         return dataclasses.replace(
             scales,
-            t=scales.t.updated(normalised_innovation_squared(nu[:3], S[:3, :3]), 3, memory),
-            r=scales.r.updated(normalised_innovation_squared(nu[3:], S[3:, 3:]), 3, memory),
+            t=t_scale,
+            r=r_scale,
+            pose_excess=pose_excess_after(excess, P, R, (float(factors[0]), float(factors[1]))),
         )
 
     def _reported(self, estimate: Estimate) -> Estimate:
