@@ -460,13 +460,17 @@ class RoftTracker:
         excess = scales.pose_excess
         samples = []
         for block in (slice(0, 3), slice(3, 6)):
+            # a sample of the noise's variance per dimension, in units of the configured one;
+            # never negative (a prediction far more uncertain than its innovation says nothing
+            # about the noise, it must not cancel the evidence of the other samples)
             spread = float(nu[block] @ nu[block]) - float(
                 np.trace(P[block, block] + excess[block, block])
             )
-            samples.append(spread / (float(np.trace(R[block, block])) / 3.0))
+            samples.append(max(spread, 0.0) / (float(np.trace(R[block, block])) / 3.0))
         t_scale = scales.t.updated(samples[0], 3, memory)
         r_scale = scales.r.updated(samples[1], 3, memory)
-        factors = np.clip([t_scale.factor, r_scale.factor], cfg.min_factor, cfg.max_factor)
+        # the configured pose noise is a floor: the excess stays positive semi-definite
+        factors = np.clip([t_scale.factor, r_scale.factor], 1.0, cfg.max_factor)
         return dataclasses.replace(
             scales,
             t=t_scale,
