@@ -158,14 +158,17 @@ class VelocityKFConfig:
     twist_covariance_to_ukf: bool = True
     """Add this filter's covariance to the pose UKF's velocity measurement noise (its
     ``meas_cov_v`` / ``meas_cov_w`` then act as floors); False: the fixed values only."""
-    midpoint_timing: bool = True
+    midpoint_timing: bool = False
     """The flow F_k measures the mean twist over (k-1, k], the twist at k - 1/2. True: the
     twist REPORTED for frame k (``Estimate.spatial_twist``) is carried half an interval forward
     with the rate of change given by ``midpoint_rate``; False: the mean over the interval is
     reported as the twist at k (the reference; it trails the motion by half a frame: with
     ground-truth inputs on TUNING TUM room1 e_v is 4.0 cm/s against the truth at k and 1.0 against
     the truth at k - 1/2). The pose UKF always receives the interval mean (see
-    ``pose.integrate_interval_velocity``), so the pose estimates do not depend on this switch."""
+    ``pose.integrate_interval_velocity``), so the pose estimates do not depend on this switch.
+    Off by default: with the filtered rate it lowered e_v on TUNING (GT inputs 5.6 to 4.3 cm/s,
+    default inputs 26.2 to 25.2) but not on EVALUATION (default inputs e_v 52.7 to 54.1, e_w
+    103.8 to 105.5; GT inputs TUM room4 e_v 3.05 to 3.27); docs/roft.md."""
     midpoint_rate: Literal["difference", "filtered"] = "filtered"
     """How ``midpoint_timing`` estimates the rate of change it carries the twist forward with:
     ``difference`` of the last two corrected twists (noisy), or ``filtered``: a constant-rate

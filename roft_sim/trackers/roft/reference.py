@@ -65,7 +65,6 @@ def _reference_velocity() -> VelocityKFConfig:
         skip_stale_velocity=False,  # the KF mean is fed to the UKF every frame (report 1.3)
         twist_covariance_to_ukf=False,  # fixed R_v, R_w in the UKF (report 4.4)
         midpoint_timing=False,  # the flow k-1 -> k is the velocity at k (report 3.2)
-        midpoint_rate="difference",  # unused with midpoint_timing off
     )
 
 
@@ -211,12 +210,6 @@ DEVIATIONS: tuple[Deviation, ...] = (
         "interval_velocity",
         "the UKF integrates the pose with the new (interval-mean) velocity the flow measures",
         _restore("pose", "integrate_interval_velocity"),
-    ),
-    Deviation(
-        "midpoint_twist",
-        "the reported twist is carried from the interval's midpoint to the frame with a "
-        "filtered rate (the UKF still gets the interval mean)",
-        _restore("velocity", "midpoint_timing", "midpoint_rate"),
     ),
     Deviation(
         "covariance_scale",
