@@ -34,7 +34,7 @@ from roft_sim.trackers.roft import (
     VelocityKFConfig,
     ablation_config,
 )
-from roft_sim.trackers.roft.config import PoseGateConfig, PoseSyncConfig
+from roft_sim.trackers.roft.config import CovarianceScaleConfig, PoseGateConfig, PoseSyncConfig
 from roft_sim.trackers.roft.mask_sync import PixelSet, metric_erosion_px
 
 TINY = RoftConfig(velocity=VelocityKFConfig(subsampling_stride=5))
@@ -195,7 +195,8 @@ def test_reset_with_an_initial_estimate(tiny_seq):
 
 def test_estimate_layout(tiny_seq):
     seq = tiny_seq
-    tracker = RoftTracker(TINY, make_context(seq))
+    unscaled = dataclasses.replace(TINY, covariance_scale=CovarianceScaleConfig(enable=False))
+    tracker = RoftTracker(unscaled, make_context(seq))
     est = run(tracker, build_observations(seq, poses=paper_schedule(len(seq))))
     e = est[-1]
     P = tracker.pose_belief.P
@@ -203,6 +204,17 @@ def test_estimate_layout(tiny_seq):
     np.testing.assert_array_equal(e.covariance[idx["t_x"] : idx["t_z"] + 1, 0:3], P[6:9, 6:9])
     np.testing.assert_array_equal(e.covariance[idx["r_x"], idx["r_x"]], P[9, 9])
     np.testing.assert_array_equal(e.covariance[idx["v_x"], idx["w_z"]], P[0, 5])
+    # the default calibration: the velocity blocks are scaled by the factors the diagnostics
+    # report, a positive semi-definite excess is added to the pose block; the estimates are
+    # the same
+    obs = build_observations(seq, poses=paper_schedule(len(seq)))
+    s = run(RoftTracker(TINY, make_context(seq)), obs)[-1]
+    np.testing.assert_array_equal(s.T_cam_obj, e.T_cam_obj)
+    np.testing.assert_array_equal(s.v_obj_mps, e.v_obj_mps)
+    f = np.array([s.diagnostics[f"covariance_scale_{b}"] for b in "vw"], dtype=float)
+    d = np.r_[np.ones(6), np.repeat(np.sqrt(np.maximum(f, 1.0)), 3)]
+    np.testing.assert_allclose(s.covariance[6:], (e.covariance * np.outer(d, d))[6:], rtol=1e-12)
+    assert np.linalg.eigvalsh(s.covariance[:6, :6] - e.covariance[:6, :6]).min() > -1e-15
     np.testing.assert_array_equal(e.spatial_twist, tracker.velocity_belief[0])
     np.testing.assert_array_equal(e.v_obj_mps, tracker.pose_belief.x[0:3])
     assert not est[0].valid or est[0].k == 0

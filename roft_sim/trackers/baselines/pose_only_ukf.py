@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 
 from roft_sim.trackers.base import Tracker, TrackerContext
 from roft_sim.trackers.roft.config import (
+    CovarianceScaleConfig,
     OutlierRejectionConfig,
     PoseGateConfig,
     PoseSyncConfig,
@@ -80,6 +81,8 @@ def _roft_config(config: PoseOnlyUkfConfig, *, resync: bool) -> RoftConfig:
         sync=config.sync,
         outlier_rejection=OutlierRejectionConfig(enable=False),
         gate=config.gate,
+        # the baselines report their filter's own covariance (as naive-delay, its own class)
+        covariance_scale=CovarianceScaleConfig(enable=False),
     )
 
 

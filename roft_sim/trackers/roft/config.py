@@ -3,7 +3,8 @@
 Every default is the value of hsp-iit/roft's ``config_fast_ycb.cfg`` as run by its test scripts
 (see docs/roft.md, "Parameters"). Variances are variances (not standard deviations), as in the
 reference. Load from TOML with :func:`roft_sim.trackers.load_tracker_config`; the nested tables
-are ``[mask]``, ``[velocity]``, ``[pose]``, ``[outlier_rejection]``, ``[gate]`` and ``[sync]``.
+are ``[mask]``, ``[velocity]``, ``[pose]``, ``[outlier_rejection]``, ``[gate]``, ``[sync]`` and
+``[covariance_scale]``.
 
 The Table IV ablations of the paper are switches here; :func:`ablation_config` returns the
 configuration the reference test scripts use for each of them.
@@ -25,6 +26,7 @@ __all__ = [
     "OutlierRejectionConfig",
     "PoseGateConfig",
     "PoseSyncConfig",
+    "CovarianceScaleConfig",
     "RoftConfig",
     "ABLATIONS",
     "ablation_config",
@@ -158,15 +160,37 @@ class VelocityKFConfig:
     ``meas_cov_v`` / ``meas_cov_w`` then act as floors); False: the fixed values only."""
     midpoint_timing: bool = False
     """The flow F_k measures the mean twist over (k-1, k], the twist at k - 1/2. True: the
-    twist REPORTED for frame k (``Estimate.spatial_twist``) is the corrected one carried half an
-    interval forward with the rate of change of the last two corrected twists; False: the
-    mean over the interval is reported as the twist at k (the reference). The pose UKF always
-    receives the interval mean (see ``pose.integrate_interval_velocity``). Off by default:
-    with ground-truth flow it lowers e_w (TUNING: 30.7 to 26.7 deg/s), with the default inputs
-    the difference of two noisy twists raises e_v (TUNING: 27.3 to 29.8 cm/s)."""
+    twist REPORTED for frame k (``Estimate.spatial_twist``) is carried half an interval forward
+    with the rate of change given by ``midpoint_rate``; False: the mean over the interval is
+    reported as the twist at k (the reference; it trails the motion by half a frame: with
+    ground-truth inputs on TUNING TUM room1 e_v is 4.0 cm/s against the truth at k and 1.0 against
+    the truth at k - 1/2). The pose UKF always receives the interval mean (see
+    ``pose.integrate_interval_velocity``), so the pose estimates do not depend on this switch.
+    Off by default: with the filtered rate it lowered e_v on TUNING (GT inputs 5.6 to 4.3 cm/s,
+    default inputs 26.2 to 25.2) but not on EVALUATION (default inputs e_v 52.7 to 54.1, e_w
+    103.8 to 105.5; GT inputs TUM room4 e_v 3.05 to 3.27); docs/roft.md."""
+    midpoint_rate: Literal["difference", "filtered"] = "filtered"
+    """How ``midpoint_timing`` estimates the rate of change it carries the twist forward with:
+    ``difference`` of the last two corrected twists (noisy), or ``filtered``: a constant-rate
+    Kalman filter per component (roft_sim/trackers/roft/twist_rate.py) whose measurement noise
+    adapts to the flow (covariance matching on its own prediction errors, floored by the
+    velocity KF's variance), so the extrapolation fades with noisy flow."""
+    rate_psd_linear: float = 300.0
+    """``filtered``: spectral density of the random walk of d(v_o)/dt [(m/s^2)^2/s]."""
+    rate_psd_angular: float = 1000.0
+    """``filtered``: spectral density of the random walk of dw/dt [(rad/s^2)^2/s]."""
+    rate_noise_memory: float = 30.0
+    """``filtered``: memory of the measurement-noise estimate [frames]."""
 
     def __post_init__(self) -> None:
         _check_positive("velocity", "sigma_linear", self.sigma_linear, allow_zero=True)
+        _check_positive(
+            "velocity", "rate_psd", (self.rate_psd_linear, self.rate_psd_angular), allow_zero=True
+        )
+        if not (math.isfinite(self.rate_noise_memory) and self.rate_noise_memory >= 1):
+            raise ConfigError(
+                f"velocity.rate_noise_memory must be >= 1 frame, got {self.rate_noise_memory}"
+            )
         _check_positive("velocity", "sigma_angular", self.sigma_angular, allow_zero=True)
         _check_positive("velocity", "cov_v0", self.cov_v0)
         _check_positive("velocity", "cov_w0", self.cov_w0)
@@ -417,6 +441,44 @@ class PoseSyncConfig:
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
+class CovarianceScaleConfig:
+    """Calibration of the REPORTED covariance (``Estimate.covariance``) by online variance-scale
+    estimation (roft_sim/trackers/roft/covariance_scale.py; not in the reference). The pose
+    block (t, r) and the velocity block (v, w) are each multiplied by the forgetting-factor mean
+    of the normalised innovation squared of their own measurements per dimension. The filter's
+    means and its internal covariance are untouched (Kalman gains are invariant to a common
+    scale of P, Q and R), so the estimates are the same with it on or off."""
+
+    enable: bool = True
+    """Scale the reported covariance; False reports the UKF's covariance as it is (the
+    reference)."""
+    pose_block: Literal["scale", "excess"] = "excess"
+    """How the pose block (t, r) is calibrated: ``scale`` multiplies it by the mean NIS per
+    dimension of the fused poses (right when P, Q and R are off by one common factor);
+    ``excess`` estimates the poses' true noise by covariance matching (the configured R times
+    a running factor) and adds the covariance the filter's gain leaves unaccounted (Joseph form
+    with the estimated noise), right when the pose noise alone is mis-specified."""
+    memory_measurements: float = 20.0
+    """Memory of the forgetting-factor means [measurements of the block]: forgetting factor
+    ``1 - 1 / memory``."""
+    min_factor: float = 1e-2
+    """The smallest factor applied (guards a run of lucky innovations)."""
+    max_factor: float = 1e6
+    """The largest factor applied."""
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.memory_measurements) and self.memory_measurements >= 1):
+            raise ConfigError(
+                f"covariance_scale.memory_measurements must be >= 1, got {self.memory_measurements}"
+            )
+        if not (0 < self.min_factor <= 1 <= self.max_factor and math.isfinite(self.max_factor)):
+            raise ConfigError(
+                f"covariance_scale needs 0 < min_factor <= 1 <= max_factor < inf, got "
+                f"{self.min_factor}, {self.max_factor}"
+            )
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
 class RoftConfig:
     """Every setting of the ROFT tracker, with the reference's defaults."""
 
@@ -441,6 +503,7 @@ class RoftConfig:
     the quick stress benchmark (docs/running.md): the EVALUATION split's flips and 90 cm jumps
     were fused without it."""
     sync: PoseSyncConfig = field(default_factory=PoseSyncConfig)
+    covariance_scale: CovarianceScaleConfig = field(default_factory=CovarianceScaleConfig)
 
     def __post_init__(self) -> None:
         if self.use_velocity and not self.use_flow:

@@ -20,6 +20,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from roft_sim.trackers.roft.config import (
+    CovarianceScaleConfig,
     MaskSyncConfig,
     PoseGateConfig,
     PoseSyncConfig,
@@ -97,6 +98,11 @@ def _reference_sync() -> PoseSyncConfig:
     return PoseSyncConfig(horizon_frames=6)
 
 
+def _reference_covariance_scale() -> CovarianceScaleConfig:
+    # the UKF's covariance is reported as it is (report 4.4: no adaptation of P, Q or R)
+    return CovarianceScaleConfig(enable=False)
+
+
 def reference_config() -> RoftConfig:
     """ROFT as the C++ reference runs it (config_fast_ycb.cfg with the test scripts' values).
 
@@ -111,6 +117,7 @@ def reference_config() -> RoftConfig:
         pose=_reference_pose(),
         gate=_reference_gate(),
         sync=_reference_sync(),
+        covariance_scale=_reference_covariance_scale(),
     )
 
 
@@ -124,6 +131,7 @@ class RoftReferenceConfig(RoftConfig):
     pose: PoseUKFConfig = field(default_factory=_reference_pose)
     gate: PoseGateConfig = field(default_factory=_reference_gate)
     sync: PoseSyncConfig = field(default_factory=_reference_sync)
+    covariance_scale: CovarianceScaleConfig = field(default_factory=_reference_covariance_scale)
 
 
 @dataclass(frozen=True, slots=True)
@@ -215,6 +223,13 @@ DEVIATIONS: tuple[Deviation, ...] = (
         "poses whose innovation is far beyond the spread of the accepted ones are rejected "
         "(chi-square gate on an adapted variance; flips and jumps the depth test lets through)",
         lambda c: _rep(c, gate=_DEFAULT.gate),
+    ),
+    Deviation(
+        "covariance_scale",
+        "the reported covariance is calibrated online from the filter's innovations (velocity "
+        "blocks: twist-change factor; pose block: Joseph-form excess of the estimated pose "
+        "noise); the estimates are unchanged",
+        _restore("covariance_scale", "enable"),
     ),
 )
 """The deviations in the order the attribution table adds them; applying all of them to

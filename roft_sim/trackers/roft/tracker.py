@@ -25,6 +25,7 @@ the horizon), so the result does not depend on the order of arrival.
 
 from __future__ import annotations
 
+import dataclasses
 from collections import Counter
 from dataclasses import dataclass
 
@@ -47,6 +48,14 @@ from roft_sim.trackers.roft.innovation_gate import (
     adaptive_gate_test,
     initial_spread,
     squared_innovations,
+from roft_sim.trackers.roft.covariance_scale import (
+    BlockScales,
+    normalised_innovation_squared,
+    pose_excess_after,
+    pose_innovation,
+    scaled_estimate_covariance,
+    twist_difference,
+    twist_noise,
 )
 from roft_sim.trackers.roft.mask_sync import (
     MaskSynchroniser,
@@ -157,6 +166,7 @@ class RoftTracker:
         self._gate_streaks: dict[int, int] = {}  # frame -> poses gated in a row after it
         # frame -> the adaptive gate's innovation spread after it
         self._gate_spreads: dict[int, InnovationSpread] = {}
+        self._scales: dict[int, BlockScales] = {}  # frame -> variance scales after it
         self._poses: dict[int, list[_Pose]] = {}
         self._known_ids: dict[int, int] = {}  # detection_id -> capture frame
         self._decisions: dict[int, bool] = {}  # detection_id -> accepted
@@ -310,6 +320,7 @@ class RoftTracker:
                     del self._beliefs[j]
                     self._gate_streaks.pop(j, None)
                     self._gate_spreads.pop(j, None)
+                    self._scales.pop(j, None)
                 self._beliefs[c - 1] = prior
                 return c, prior
             if init is None:
@@ -400,17 +411,102 @@ class RoftTracker:
         twist_cov = frame.twist_cov if twist is not None else None
         streak = self._gate_streaks.get(j - 1, 0)
         spread = self._gate_spreads.get(j - 1) or initial_spread(self._config.gate)
+        scales = self._scales.get(j - 1, BlockScales.initial())
+        if twist is not None:
+            scales = self._with_twist_change(scales, j, twist, twist_cov)
         poses = sorted(self._poses.get(j, []), key=lambda p: p.detection_id)
         if not self._config.use_pose or not poses:
             belief = self._ukf.correct(belief, twist=twist, twist_cov=twist_cov)
         else:
             for i, pose in enumerate(poses):
+                before = belief
                 belief, streak, spread = self._correct_with_pose(
                     belief, twist if i == 0 else None, pose, frame, i == 0, streak, spread
                 )
+                if self._decisions.get(pose.detection_id) and pose is not self._init_pose:
+                    scales = self._with_pose_nis(scales, before, pose)
         self._gate_streaks[j] = streak
         self._gate_spreads[j] = spread
+        self._scales[j] = scales
         return belief
+
+    # ------------------------------------------------------------------ reported covariance
+    def _with_twist_change(
+        self, scales: BlockScales, j: int, twist: F64, twist_cov: F64 | None
+    ) -> BlockScales:
+        """``scales`` with the velocity blocks updated by the change of the twist measurement
+        from frame j-1 to j, normalised by the two measurements' noise (none without a twist
+        at j-1)."""
+        cfg = self._config.covariance_scale
+        previous = self._frames.get(j - 1)
+        if not cfg.enable or previous is None or previous.twist is None:
+            return scales
+        pose_cfg = self._config.pose
+        d, S = twist_difference(
+            twist,
+            twist_noise(pose_cfg, twist_cov),
+            previous.twist,
+            twist_noise(pose_cfg, previous.twist_cov),
+        )
+        memory = cfg.memory_measurements
+        return dataclasses.replace(
+            scales,
+            v=scales.v.updated(normalised_innovation_squared(d[:3], S[:3, :3]), 3, memory),
+            w=scales.w.updated(normalised_innovation_squared(d[3:], S[3:, 3:]), 3, memory),
+        )
+
+    def _with_pose_nis(self, scales: BlockScales, before: PoseBelief, pose: _Pose) -> BlockScales:
+        """``scales`` with the pose blocks updated by a fused pose's innovation at ``before``
+        (the belief before that pose's correction)."""
+        cfg = self._config.covariance_scale
+        if not cfg.enable:
+            return scales
+        nu, S = pose_innovation(before, pose.p_m, pose.q_wxyz, self._config.pose)
+        memory = cfg.memory_measurements
+        if cfg.pose_block == "scale":
+            return dataclasses.replace(
+                scales,
+                t=scales.t.updated(normalised_innovation_squared(nu[:3], S[:3, :3]), 3, memory),
+                r=scales.r.updated(normalised_innovation_squared(nu[3:], S[3:, 3:]), 3, memory),
+            )
+        # covariance matching of the pose noise: E[nu nu^T] = P + excess + R_true
+        P = before.P[6:12, 6:12]
+        pc = self._config.pose
+        R = np.diag(np.concatenate([pc.meas_cov_x, pc.meas_cov_q]))
+        excess = scales.pose_excess
+        samples = []
+        for block in (slice(0, 3), slice(3, 6)):
+            # a sample of the noise's variance per dimension, in units of the configured one;
+            # never negative (a prediction far more uncertain than its innovation says nothing
+            # about the noise, it must not cancel the evidence of the other samples)
+            spread = float(nu[block] @ nu[block]) - float(
+                np.trace(P[block, block] + excess[block, block])
+            )
+            samples.append(max(spread, 0.0) / (float(np.trace(R[block, block])) / 3.0))
+        t_scale = scales.t.updated(samples[0], 3, memory)
+        r_scale = scales.r.updated(samples[1], 3, memory)
+        # the configured pose noise is a floor: the excess stays positive semi-definite
+        factors = np.clip([t_scale.factor, r_scale.factor], 1.0, cfg.max_factor)
+        return dataclasses.replace(
+            scales,
+            t=t_scale,
+            r=r_scale,
+            pose_excess=pose_excess_after(excess, P, R, (float(factors[0]), float(factors[1]))),
+        )
+
+    def _reported(self, estimate: Estimate) -> Estimate:
+        """The estimate with its covariance scaled by the variance scales of its frame."""
+        cfg = self._config.covariance_scale
+        scales = self._scales.get(estimate.k)
+        if not cfg.enable or scales is None or estimate.covariance is None:
+            return estimate
+        cov = scaled_estimate_covariance(np.asarray(estimate.covariance), scales, cfg)
+        factors = dict(zip(("t", "r", "v", "w"), scales.factors().tolist(), strict=True))
+        diagnostics = {
+            **estimate.diagnostics,
+            **{f"covariance_scale_{name}": f for name, f in factors.items()},
+        }
+        return dataclasses.replace(estimate, covariance=cov, diagnostics=diagnostics)
 
     # ------------------------------------------------------------------ the protocol
     def step(self, observation: Observation) -> Estimate:
@@ -455,14 +551,16 @@ class RoftTracker:
                 dropped_pose_ids=tuple(dropped_ids),
                 diagnostics=diagnostics,
             )
-        return estimate_from_belief(
-            k,
-            estimate_belief,
-            spatial_twist=spatial_twist,
-            accepted_pose_ids=accepted,
-            rejected_pose_ids=rejected,
-            dropped_pose_ids=tuple(dropped_ids),
-            diagnostics=diagnostics,
+        return self._reported(
+            estimate_from_belief(
+                k,
+                estimate_belief,
+                spatial_twist=spatial_twist,
+                accepted_pose_ids=accepted,
+                rejected_pose_ids=rejected,
+                dropped_pose_ids=tuple(dropped_ids),
+                diagnostics=diagnostics,
+            )
         )
 
     def _frame_interval_s(self, obs: Observation) -> float:
@@ -527,6 +625,8 @@ class RoftTracker:
             del self._gate_streaks[j]
         for j in [j for j in self._gate_spreads if j < oldest - 1]:
             del self._gate_spreads[j]
+        for j in [j for j in self._scales if j < oldest - 1]:
+            del self._scales[j]
         for c in [c for c in self._poses if c < oldest]:
             for pose in self._poses.pop(c):
                 self._known_ids.pop(pose.detection_id, None)

@@ -24,6 +24,7 @@ from roft_sim.geometry.camera import CameraIntrinsics
 from roft_sim.records import FlowField
 from roft_sim.trackers.roft.config import VelocityKFConfig
 from roft_sim.trackers.roft.mask_sync import PixelSet, lookup_flow
+from roft_sim.trackers.roft.twist_rate import TwistRateFilter
 
 F64 = NDArray[np.float64]
 
@@ -199,6 +200,9 @@ class VelocityKF:
         self.flow_sigma_px: F64 = np.sqrt(self._R)
         """(2,) the flow noise standard deviation used by the last update [px]."""
         self._previous_mid_t: float | None = None
+        self._rate = TwistRateFilter(
+            np.repeat([cfg.rate_psd_linear, cfg.rate_psd_angular], 3), cfg.rate_noise_memory
+        )
 
     def _solve(self, P_pred: F64, J2: F64, innovation: F64, weight: F64) -> tuple[F64, F64]:
         JtW = J2.T * weight  # (6, 2N)
@@ -273,7 +277,10 @@ class VelocityKF:
         self.x_frame = x_new
         if cfg.midpoint_timing and t_s is not None and dt_s is not None:
             mid_t = t_s - 0.5 * dt_s
-            if self._previous_mid_t is not None and mid_t > self._previous_mid_t:
+            if cfg.midpoint_rate == "filtered":
+                self._rate.update(x_new, np.diag(P_post), mid_t)
+                self.x_frame = self._rate.twist_at(t_s)
+            elif self._previous_mid_t is not None and mid_t > self._previous_mid_t:
                 rate = (x_new - self.x) / (mid_t - self._previous_mid_t)
                 self.x_frame = x_new + rate * (0.5 * dt_s)
             self._previous_mid_t = mid_t

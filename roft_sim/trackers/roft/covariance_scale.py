@@ -1,0 +1,226 @@
+"""Online variance-scale estimation for ROFT's reported covariance (issue 14, consistency).
+
+A Kalman filter's gains do not change when its initial covariance P0, process noise Q and
+measurement noise R are all multiplied by one factor ``s``: the means are the same and every
+covariance is ``s`` times larger. The factor a filter's noise model is off by can therefore be
+estimated from the data WITHOUT touching its estimates: the normalised innovation squared
+``NIS = nu^T S^-1 nu`` of an m-dimensional measurement has mean ``s * m`` when the true noise
+is ``s`` times the modelled one, so
+
+    s_hat = (sum_i lambda^(n-i) NIS_i + m0) / (sum_i lambda^(n-i) m_i + m0)
+
+(a forgetting-factor mean of NIS per measurement dimension, ``lambda = 1 - 1 / memory``,
+starting from ``s = 1`` with the weight ``m0`` of one measurement) is an unbiased estimate of
+``s`` that follows slow changes of the input quality, and ``s_hat * P`` is the covariance the
+filter would report with a correctly scaled noise model.
+
+ROFT's state has two blocks that are measured by different sensors, each with its own
+mis-scaling: the pose (t, r), corrected by the detector's poses, and the velocity (v, w),
+corrected by the flow-based twist. Each block gets its own factor, from the NIS of its own
+measurements (the pose rows of a pose correction; the twist rows of a velocity correction), and
+the reported covariance is ``D P D`` with ``D = diag(sqrt(s_pose) I6, sqrt(s_velocity) I6)``
+(a congruence, so it stays symmetric positive semi-definite; the cross-covariance between the
+blocks is scaled by ``sqrt(s_pose s_velocity)``). With one factor for both blocks this is
+exactly the common rescaling above; with two it is its block-wise approximation.
+
+The innovations are those of the linearised measurement models at the predicted belief (the
+UKF's own statistics to first order): position ``p``; orientation ``2 log(q_meas q^*)`` (left
+tangent, as the UKF's covariance); twist ``(v - w x p, w)`` with the Jacobian
+``[[I, [p]x, -[w]x, 0], [0, I, 0, 0]]`` over ``(v, w, p, dtheta)``. Only measurements the filter
+fused count (a pose the outlier test or the gate rejected does not).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from roft_sim.trackers.roft.config import CovarianceScaleConfig, PoseUKFConfig
+from roft_sim.trackers.roft.pose_ukf import PoseBelief
+
+F64 = NDArray[np.float64]
+
+__all__ = [
+    "ScaleEstimate",
+    "twist_difference",
+    "BlockScales",
+    "normalised_innovation_squared",
+    "twist_innovation",
+    "pose_innovation",
+    "scaled_estimate_covariance",
+    "pose_excess_after",
+    "twist_noise",
+]
+
+
+@dataclass(frozen=True, slots=True)
+class ScaleEstimate:
+    """A forgetting-factor mean of NIS per measurement dimension (immutable, so it can be
+    stored per frame and replayed with the filter)."""
+
+    nis_sum: float
+    """Forgetting-weighted sum of NIS values (plus the prior's weight)."""
+    dof_sum: float
+    """Forgetting-weighted sum of the measurement dimensions (plus the prior's weight)."""
+
+    @staticmethod
+    def prior(dof: float) -> ScaleEstimate:
+        """Factor 1 with the weight of one ``dof``-dimensional measurement."""
+        return ScaleEstimate(float(dof), float(dof))
+
+    @property
+    def factor(self) -> float:
+        """The variance scale: actual / modelled innovation variance (1 = consistent)."""
+        return self.nis_sum / self.dof_sum
+
+    def updated(self, nis: float, dof: int, memory: float) -> ScaleEstimate:
+        """With one more measurement's NIS; ``memory`` [measurements] sets the forgetting
+        factor ``1 - 1 / memory`` (the prior is forgotten at the same rate). A non-finite NIS
+        is ignored."""
+        if not np.isfinite(nis):
+            return self
+        keep = 1.0 - 1.0 / memory
+        return ScaleEstimate(keep * self.nis_sum + float(nis), keep * self.dof_sum + float(dof))
+
+
+@dataclass(frozen=True, slots=True)
+class BlockScales:
+    """The variance scales of the four 3-D blocks of the estimate: position, rotation, linear
+    and angular velocity."""
+
+    t: ScaleEstimate
+    r: ScaleEstimate
+    v: ScaleEstimate
+    w: ScaleEstimate
+    pose_excess: F64
+    """(6, 6) with ``pose_block = "excess"``: the covariance of the pose (t, r) the filter's
+    own misses (its true error covariance minus its covariance), from the last fused pose."""
+
+    @staticmethod
+    def initial() -> BlockScales:
+        one = ScaleEstimate.prior(3)
+        return BlockScales(one, one, one, one, np.zeros((6, 6)))
+
+    def factors(self) -> F64:
+        """(4,) the factors of (t, r, v, w)."""
+        return np.array([self.t.factor, self.r.factor, self.v.factor, self.w.factor])
+
+
+def normalised_innovation_squared(nu: F64, S: F64) -> float:
+    """``nu^T S^-1 nu`` of an innovation ``(m,)`` with covariance ``(m, m)`` (NaN if singular)."""
+    try:
+        return float(nu @ np.linalg.solve(S, nu))
+    except np.linalg.LinAlgError:
+        return float("nan")
+
+
+def _skew(a: F64) -> F64:
+    return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+
+
+def _rotvec_between(q_a: F64, q_b: F64) -> F64:
+    """``2 log(q_a ⊗ q_b^*)`` [rad] (3,): the left rotation taking q_b to q_a."""
+    aw, av = q_a[0], q_a[1:]
+    bw, bv = q_b[0], -q_b[1:]
+    w = aw * bw - av @ bv
+    v = aw * bv + bw * av + np.cross(av, bv)
+    if w < 0.0:
+        w, v = -w, -v
+    s = float(np.linalg.norm(v))
+    if s < 1e-12:
+        return np.asarray(2.0 * v, dtype=np.float64)
+    return np.asarray(2.0 * np.arctan2(s, w) / s * v, dtype=np.float64)
+
+
+def twist_innovation(
+    belief: PoseBelief, twist: F64, config: PoseUKFConfig, twist_cov: F64 | None
+) -> tuple[F64, F64]:
+    """Innovation (6,) and its covariance (6, 6) of a twist ``(v_o, w)`` at ``belief``, with the
+    UKF's twist noise ``diag(meas_cov_v, meas_cov_w)`` plus ``twist_cov`` (or not)."""
+    v, w, p = belief.x[0:3], belief.x[3:6], belief.x[6:9]
+    predicted = np.concatenate([v - np.cross(w, p), w])
+    H = np.zeros((6, 12))
+    H[0:3, 0:3] = np.eye(3)
+    H[0:3, 3:6] = _skew(p)
+    H[0:3, 6:9] = -_skew(w)
+    H[3:6, 3:6] = np.eye(3)
+    R = np.diag(np.concatenate([config.meas_cov_v, config.meas_cov_w]))
+    if twist_cov is not None:
+        R = R + np.asarray(twist_cov, dtype=np.float64)
+    S = H @ belief.P @ H.T + R
+    return np.asarray(twist, dtype=np.float64) - predicted, 0.5 * (S + S.T)
+
+
+def twist_difference(
+    twist: F64, noise: F64, previous_twist: F64, previous_noise: F64
+) -> tuple[F64, F64]:
+    """The change (6,) between two consecutive twist measurements and the covariance (6, 6) it
+    would have if the twist did not change: the sum of their noises.
+
+    ``E[d d^T] = R_k + R_(k-1) + Cov(x_k - x_(k-1))``: the statistic over-estimates the noise
+    scale by the motion's change over one frame (conservative), and sees every error of the
+    twist that is not the same in consecutive frames."""
+    d = np.asarray(twist, dtype=np.float64) - np.asarray(previous_twist, dtype=np.float64)
+    S = np.asarray(noise, dtype=np.float64) + np.asarray(previous_noise, dtype=np.float64)
+    return d, 0.5 * (S + S.T)
+
+
+def twist_noise(config: PoseUKFConfig, twist_cov: F64 | None) -> F64:
+    """(6, 6) the UKF's noise of a twist measurement: ``diag(meas_cov_v, meas_cov_w)`` plus
+    ``twist_cov`` (the velocity KF's covariance) when given."""
+    R = np.diag(np.concatenate([config.meas_cov_v, config.meas_cov_w]))
+    if twist_cov is not None:
+        R = R + np.asarray(twist_cov, dtype=np.float64)
+    return R
+
+
+def pose_innovation(
+    belief: PoseBelief, p_m: F64, q_wxyz: F64, config: PoseUKFConfig
+) -> tuple[F64, F64]:
+    """Innovation (6,) (position [m], left rotation vector [rad]) and its covariance (6, 6) of
+    a pose measurement at ``belief``, with the UKF's pose noise ``diag(meas_cov_x, meas_cov_q)``."""
+    nu = np.concatenate([p_m - belief.x[6:9], _rotvec_between(q_wxyz, belief.q)])
+    S = belief.P[6:12, 6:12] + np.diag(np.concatenate([config.meas_cov_x, config.meas_cov_q]))
+    return nu, 0.5 * (S + S.T)
+
+
+def pose_excess_after(
+    excess: F64, predicted: F64, noise: F64, noise_scale: tuple[float, float]
+) -> F64:
+    """The excess covariance (6, 6) after a pose correction with the filter's gain.
+
+    The filter fuses a pose with ``K = P (P + R)^-1`` (``P`` = ``predicted``, its (t, r)
+    block; ``R`` = ``noise``, the configured pose noise) and believes ``P+ = (I - K) P``. When
+    its prediction's true error covariance is ``P + excess`` and the pose's is ``R_hat`` (the
+    configured R with its t and r blocks multiplied by ``noise_scale``), the true covariance
+    after the same correction is ``(I - K)(P + excess)(I - K)^T + K R_hat K^T`` (the Joseph
+    form, valid for any gain); the new excess is the difference.
+    """
+    K = predicted @ np.linalg.inv(predicted + noise)
+    I_K = np.eye(6) - K
+    r_hat = noise * np.repeat(np.asarray(noise_scale, dtype=np.float64), 3)[:, None]
+    true = I_K @ (predicted + excess) @ I_K.T + K @ r_hat @ K.T
+    believed = I_K @ predicted
+    out: F64 = true - 0.5 * (believed + believed.T)
+    return 0.5 * (out + out.T)
+
+
+def scaled_estimate_covariance(
+    covariance: F64, scales: BlockScales, config: CovarianceScaleConfig
+) -> F64:
+    """``D C D`` of a covariance (12, 12) in ``ESTIMATE_COVARIANCE_ORDER`` (t, r, v, w), with
+    ``D = diag(sqrt(s_t) I3, sqrt(s_r) I3, sqrt(s_v) I3, sqrt(s_w) I3)``, the pose factors
+    clipped to ``[min_factor, max_factor]``, the velocity factors to ``[1, max_factor]``: the
+    twist-change statistic is blind to errors that persist from frame to frame, so it may only
+    inflate the filter's own velocity covariance, never shrink it."""
+    lower = np.array([config.min_factor, config.min_factor, 1.0, 1.0])
+    s = np.clip(scales.factors(), lower, config.max_factor)
+    if config.pose_block == "excess":
+        s[:2] = 1.0
+    d = np.repeat(np.sqrt(s), 3)
+    out: F64 = covariance * d[:, None] * d[None, :]
+    if config.pose_block == "excess":
+        out[:6, :6] += scales.pose_excess
+    return 0.5 * (out + out.T)  # exactly symmetric (the products round differently)

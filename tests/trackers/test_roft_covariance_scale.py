@@ -1,0 +1,181 @@
+"""The reported covariance's calibration (roft_sim/trackers/roft/covariance_scale.py) and the
+twist carried to the frame time (roft_sim/trackers/roft/twist_rate.py), issue 14.
+
+1. Oracle: a linear Kalman filter whose P0, Q and R are all 16 times too small. The forgetting
+   mean of its NIS per dimension recovers the factor, and the scaled covariance is consistent
+   (its NEES per dimension is 1) while the filter's own is 16 times too confident.
+2. The Joseph-form excess of a pose correction with a mis-specified noise equals the Monte-Carlo
+   error covariance of that correction minus what the filter believes.
+3. ROFT on the analytic box with noisy flow (1 px) and noisy poses (1 cm, 3 deg), paper
+   schedule: once two poses were fused, the mean NEES of the 12-D estimate lies in the
+   single-frame 95 % chi-square band with the calibration, and far above it without (the
+   estimates are the same either way).
+4. The twist rate filter: exact for a twist linear in time; with a constant twist and white
+   noise its output is no worse than the interval mean.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from roft_sim.harness.evaluation import estimate_errors
+from roft_sim.metrics import chi2_bounds, nees
+from roft_sim.records import MaskDetection, Observation, PoseDetection
+from roft_sim.testing.fixtures import analytic_sequence
+from roft_sim.trackers.base import TrackerContext
+from roft_sim.trackers.roft import OutlierRejectionConfig, RoftConfig, RoftTracker
+from roft_sim.trackers.roft.config import CovarianceScaleConfig
+from roft_sim.trackers.roft.covariance_scale import (
+    ScaleEstimate,
+    normalised_innovation_squared,
+    pose_excess_after,
+)
+from roft_sim.trackers.roft.twist_rate import TwistRateFilter
+
+
+def test_scale_estimator_recovers_a_common_noise_factor_on_a_linear_kf():
+    rng = np.random.default_rng(0)
+    dt, factor, steps = 1 / 30, 16.0, 3000
+    F = np.array([[1.0, dt], [0.0, 1.0]])
+    H = np.array([[1.0, 0.0]])
+    Q = 0.5 * np.array([[dt**3 / 3, dt**2 / 2], [dt**2 / 2, dt]])
+    R = np.array([[1e-4]])
+    x_true = np.zeros(2)
+    x, P = np.zeros(2), np.diag([1e-4, 1e-2])
+    x_true = rng.multivariate_normal(x, factor * P)
+    scale = ScaleEstimate.prior(1)
+    own, scaled = [], []
+    for _ in range(steps):
+        x_true = F @ x_true + rng.multivariate_normal(np.zeros(2), factor * Q)
+        z = H @ x_true + rng.normal(0.0, np.sqrt(factor * R[0, 0]), 1)
+        x, P = F @ x, F @ P @ F.T + Q
+        S = H @ P @ H.T + R
+        nu = z - H @ x
+        scale = scale.updated(normalised_innovation_squared(nu, S), 1, memory=200.0)
+        K = P @ H.T @ np.linalg.inv(S)
+        x, P = x + K @ nu, (np.eye(2) - K @ H) @ P
+        e = x_true - x
+        own.append(e @ np.linalg.solve(P, e))
+        scaled.append(e @ np.linalg.solve(scale.factor * P, e))
+    assert scale.factor == pytest.approx(factor, rel=0.25)
+    late = slice(500, None)  # after the running mean has forgotten its prior
+    assert np.mean(own[late]) > 10 * 2  # the filter's own covariance: 16 times too small
+    assert np.mean(scaled[late]) == pytest.approx(2.0, rel=0.2)  # consistent: 2 dof
+
+
+def test_pose_excess_is_the_joseph_form_of_the_filters_gain():
+    rng = np.random.default_rng(1)
+    P = np.diag([4e-4, 2e-4, 3e-4, 1e-3, 2e-3, 1.5e-3])
+    P[0, 3] = P[3, 0] = 1e-4
+    R = np.diag([1e-3] * 3 + [1e-4] * 3)
+    excess = np.diag([1e-4] * 3 + [5e-4] * 3)
+    noise_scale = (2.0, 30.0)
+    np.testing.assert_allclose(pose_excess_after(np.zeros((6, 6)), P, R, (1.0, 1.0)), 0, atol=1e-18)
+    n = 200_000
+    x = rng.multivariate_normal(np.zeros(6), P + excess, n)  # the prediction's true errors
+    r_true = R * np.repeat(noise_scale, 3)[:, None]
+    z = x + rng.multivariate_normal(np.zeros(6), r_true, n)
+    K = P @ np.linalg.inv(P + R)  # the filter's gain
+    post = x - z @ K.T  # error after x_hat += K (z - x_hat), with x_hat = 0
+    believed = (np.eye(6) - K) @ P
+    measured = np.cov(post.T) - believed
+    np.testing.assert_allclose(
+        pose_excess_after(excess, P, R, noise_scale), measured, atol=0.02 * np.abs(measured).max()
+    )
+
+
+SEQ = analytic_sequence(n_frames=36, width_px=320, height_px=240)
+
+
+def _rotation(rotvec: np.ndarray) -> np.ndarray:
+    angle = float(np.linalg.norm(rotvec))
+    k = rotvec / angle
+    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
+
+
+def _noisy_observations(seed: int) -> list[Observation]:
+    """GT flow + 1 px noise every frame; every 6th frame's GT mask and a pose with 1 cm and
+    3 deg of noise, arriving 6 frames late (the paper schedule)."""
+    rng = np.random.default_rng(seed)
+    obs = []
+    for k in range(len(SEQ)):
+        flow = SEQ.flows["gt"][k]
+        if flow is not None:
+            noise = rng.normal(0.0, 1.0, flow.flow_px.shape).astype(np.float32)
+            flow = dataclasses.replace(flow, flow_px=flow.flow_px + noise)
+        poses, masks = (), ()
+        c = k - 6
+        if c >= 0 and c % 6 == 0:
+            T = SEQ.gt.T_cam_obj[c].copy()
+            T[:3, 3] += rng.normal(0.0, 0.01, 3)
+            T[:3, :3] = _rotation(rng.normal(0.0, np.radians(3.0), 3)) @ T[:3, :3]
+            poses = (PoseDetection(T_cam_obj=T, capture_k=c, arrival_k=k, detection_id=c),)
+            masks = (
+                MaskDetection(mask=SEQ.mask(c, "gt"), capture_k=c, arrival_k=k, detection_id=c),
+            )
+        obs.append(
+            Observation(
+                k=k,
+                t_s=k / SEQ.fps,
+                rgb=None,
+                depth_m=SEQ.depth(k),
+                flow=flow,
+                poses=poses,
+                masks=masks,
+            )
+        )
+    return obs
+
+
+def _nees_after_two_poses(enable: bool, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    config = RoftConfig(
+        outlier_rejection=OutlierRejectionConfig(enable=False),
+        covariance_scale=CovarianceScaleConfig(enable=enable),
+    )
+    context = TrackerContext(
+        intrinsics=SEQ.intrinsics, fps=SEQ.fps, object_model=SEQ.model, rng=np.random.default_rng(0)
+    )
+    tracker = RoftTracker(config, context)
+    tracker.reset(None)
+    estimates = [tracker.step(o) for o in _noisy_observations(seed)]
+    late = [e for e in estimates if e.valid and e.k >= 18]  # poses captured at 0, 6, 12 fused
+    errors, covariances = estimate_errors(late, SEQ.gt, np.array([e.k for e in late]))
+    return nees(errors, covariances), np.stack([e.T_cam_obj for e in late])
+
+
+def test_roft_nees_is_in_the_chi_square_band_on_noisy_flow():
+    lo, hi = chi2_bounds(12, 1)
+    on, off = [], []
+    for seed in (0, 2):
+        values, poses = _nees_after_two_poses(True, seed)
+        values_off, poses_off = _nees_after_two_poses(False, seed)
+        np.testing.assert_array_equal(poses, poses_off)  # the estimates are unchanged
+        on.append(values)
+        off.append(values_off)
+    mean_on, mean_off = float(np.concatenate(on).mean()), float(np.concatenate(off).mean())
+    assert lo <= mean_on <= hi, (mean_on, (lo, hi))
+    assert mean_off > 3 * hi, mean_off  # the filter's own covariance is far too confident
+
+
+def test_twist_rate_filter_is_exact_for_a_linear_twist_and_harmless_on_noise():
+    dt = 1 / 30
+    rate = np.r_[0.3, -0.2, 0.1, 3.0, -2.0, 1.5]
+    f = TwistRateFilter(np.repeat([300.0, 1000.0], 3), 30.0)
+    for k in range(1, 40):
+        f.update(rate * (k - 0.5) * dt, np.full(6, 1e-8), (k - 0.5) * dt)
+    np.testing.assert_allclose(f.twist_at(39 * dt), rate * 39 * dt, atol=1e-3)
+
+    rng = np.random.default_rng(3)
+    f = TwistRateFilter(np.repeat([300.0, 1000.0], 3), 30.0)
+    err_out, err_mean = [], []
+    for k in range(1, 300):
+        z = np.r_[0.2, 0.0, -0.1, 1.0, 0.5, 0.0] + rng.normal(0.0, 0.1, 6)
+        f.update(z, np.full(6, 1e-6), (k - 0.5) * dt)  # the KF believes its twist exact
+        if k > 30:
+            err_out.append(f.twist_at(k * dt) - np.r_[0.2, 0.0, -0.1, 1.0, 0.5, 0.0])
+            err_mean.append(z - np.r_[0.2, 0.0, -0.1, 1.0, 0.5, 0.0])
+    assert np.sqrt(np.mean(np.square(err_out))) <= np.sqrt(np.mean(np.square(err_mean)))
