@@ -24,7 +24,7 @@ which other pairs were asked for, or in which order.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Protocol, runtime_checkable
+from typing import Any, Protocol, cast, runtime_checkable
 
 import cv2
 import numpy as np
@@ -413,7 +413,7 @@ def block_mean_flow(flow_px: F32, grid_px: int) -> tuple[F64, NDArray[np.bool_]]
     for i in range(g):
         for j in range(g):
             cell = blocks[:, i, :, j]
-            ok = np.isfinite(cell).all(axis=2)
+            ok = cast(NDArray[np.bool_], np.isfinite(cell).all(axis=2))  # (hg, wg) array
             total += np.where(ok[..., None], cell, np.float32(0.0))
             count += ok
     valid = count > 0
