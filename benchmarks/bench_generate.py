@@ -7,10 +7,10 @@ R-CNN-like masks) at each resolution (intrinsics scaled), written as fast-ycb by
 asset cache that the first (unmeasured) run fills, as ``roft-sim generate``'s default cache is
 after its first run.
 
-Every measurement runs in a fresh process; with ``--baseline-ref REF`` the same measurement also
-runs on the package as it was at git commit REF (extracted with ``git archive``), interleaved
-with the current one (baseline, now, baseline, now, ...), so that both see the same machine load;
-the table prints medians and the ratio now / baseline. Rows:
+Every measurement runs in a fresh process; with ``--baseline-ref REF [REF ...]`` the same
+measurement also runs on the package as it was at each git commit REF (extracted with ``git
+archive``), interleaved with the current one (baseline, ..., now, baseline, ..., now), so that all
+see the same machine load; the table prints medians and the ratio now / each baseline. Rows:
 
 - ``render+seg+flow``: :class:`SceneRenderer` with segmentation plus exact ground-truth flow from
   the previous frame, frames/s over N frames (what ``bench_render.py``'s ``+seg+flow`` mode
@@ -29,6 +29,7 @@ Memory: peak resident set size (``ru_maxrss``) of a fresh process generating a s
 sequence of the CI cracker-box scenario at 96x72 in-process; flat when frames stream to disk.
 
     python benchmarks/bench_generate.py --baseline-ref main       # everything
+    python benchmarks/bench_generate.py --baseline-ref 33cdec7 c52c313 --skip-memory
     python benchmarks/bench_generate.py --resolutions 640x480 --repeats 1 --skip-memory
     python benchmarks/bench_generate.py --skip-throughput --long-frames 3000
 """
@@ -203,9 +204,11 @@ def measure(
 
 
 def print_row(name: str, medians: dict[str, float], trees: list[Tree]) -> None:
+    """Medians of every tree, then now / each baseline (the last tree is now)."""
     cells = " ".join(f"{medians[t.label]:>9.2f}" for t in trees)
-    ratio = f"{medians[trees[1].label] / medians[trees[0].label]:>7.2f}x" if len(trees) == 2 else ""
-    print(f"{name:<30} {cells} {ratio} {load1():>6.2f}", flush=True)
+    now = medians[trees[-1].label]
+    ratios = " ".join(f"{now / medians[t.label]:>7.2f}x" for t in trees[:-1])
+    print(f"{name:<30} {cells} {ratios} {load1():>6.2f}", flush=True)
 
 
 def throughput(args: argparse.Namespace, trees: list[Tree]) -> None:
@@ -216,7 +219,8 @@ def throughput(args: argparse.Namespace, trees: list[Tree]) -> None:
         f"{', '.join(f'{x:.2f}' for x in os.getloadavg())}; fast_ycb 003_cracker_box, default "
         f"networks, {args.format}; medians over {args.repeats} interleaved runs [frames/s]"
     )
-    print(f"{'':<30} {heads} {'ratio' if len(trees) == 2 else '':>8} {'load1':>6}")
+    ratios = " ".join(f"{'/' + t.label:>8}" for t in trees[:-1])
+    print(f"{'':<30} {heads} {ratios} {'load1':>6}")
     for text in args.resolutions:
         w, h = (int(v) for v in text.lower().split("x"))
         n = args.frames or (48 if w * h <= 640 * 480 else 24)
@@ -271,13 +275,13 @@ def memory(args: argparse.Namespace, tree: Tree) -> None:
 
 def baseline_tree(ref: str, scratch: Path) -> Tree:
     """The package at git commit ``ref`` of this repository, extracted under ``scratch``."""
-    folder = scratch / "baseline"
+    folder = scratch / f"baseline_{ref}"
     folder.mkdir()
     archive = subprocess.run(
         ["git", "-C", str(REPO), "archive", ref, "roft_sim"], capture_output=True, check=True
     ).stdout
     subprocess.run(["tar", "-x", "-C", str(folder)], input=archive, check=True)
-    return Tree(label=ref[:9], pythonpath=folder, cache=scratch / "cache_baseline")
+    return Tree(label=ref[:9], pythonpath=folder, cache=scratch / f"cache_baseline_{ref}")
 
 
 def main() -> None:
@@ -288,7 +292,9 @@ def main() -> None:
     p.add_argument("--frames", type=int, help="N (default 48 at <= 640x480, else 24)")
     p.add_argument("--short-frames", type=int, default=24, help="frames of the short run")
     p.add_argument("--repeats", type=int, default=3)
-    p.add_argument("--baseline-ref", help="git commit to measure side by side (e.g. main)")
+    p.add_argument(
+        "--baseline-ref", nargs="+", default=[], help="git commits to measure side by side"
+    )
     p.add_argument("--short-frames-memory", type=int, default=150)
     p.add_argument("--long-frames", type=int, default=3000)
     p.add_argument("--skip-throughput", action="store_true")
@@ -305,9 +311,7 @@ def main() -> None:
     scratch = Path(tempfile.mkdtemp(prefix="bench_generate_trees_"))
     try:
         now = Tree(label="now", pythonpath=REPO, cache=scratch / "cache_now")
-        trees = (
-            [now] if args.baseline_ref is None else [baseline_tree(args.baseline_ref, scratch), now]
-        )
+        trees = [*(baseline_tree(ref, scratch) for ref in args.baseline_ref), now]
         if not args.skip_throughput:
             throughput(args, trees)
         if not args.skip_memory:
