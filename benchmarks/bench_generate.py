@@ -19,6 +19,10 @@ see the same machine load; the table prints medians and the ratio now / each bas
   frames are reported written: (N - W) / (t_last - t_W), t_W when the W-th frame was written
   (start-up, spawning and finalize left out; one unit of N/W frames per worker);
 - ``generate W=w wall``: N / the whole run's wall time (start-up and finalize included);
+- ``generate W=1 CPU ms/frame``: CPU time (user + system, every thread of the process: the
+  render, networks and writer threads and llvmpipe's) per frame over the same steady frames,
+  from ``getrusage``; a shared machine's load changes it far less than the rates (W=1 only: it
+  generates in the measuring process);
 - ``short W=2 wall``: ``--short-frames`` frames (default 24) with 2 workers, wall frames/s: what
   a short run sees; printed as a fraction of the 2-worker steady rate too.
 
@@ -79,17 +83,20 @@ def child_render(resolution: tuple[int, int], frames: int, cache: Path) -> float
 
 def child_generate(
     resolution: tuple[int, int], frames: int, workers: int, fmt: str, cache: Path
-) -> tuple[float, float]:
-    """(steady, wall) frames/s of one run (see the module doc)."""
+) -> tuple[float, float, float]:
+    """(steady, wall) frames/s and CPU ms per steady frame (W=1) of one run (module doc)."""
     from roft_sim.generation import GenerationOptions, ScenarioOverrides, generate_dataset
     from roft_sim.render.gl_backend import require_gl_backend
 
     backend = require_gl_backend(os.environ)
     out = Path(tempfile.mkdtemp(prefix="bench_generate_"))
     stamps: list[float] = []
+    cpu_s: list[float] = []
 
     def on_frames(n: int) -> None:
+        usage = resource.getrusage(resource.RUSAGE_SELF)
         stamps.extend([time.perf_counter()] * n)
+        cpu_s.extend([usage.ru_utime + usage.ru_stime] * n)
 
     known = {f.name for f in dataclasses.fields(GenerationOptions)}
     options = {
@@ -112,7 +119,8 @@ def child_generate(
         wall = time.perf_counter() - t0
         assert summary.finished and summary.frames_generated == frames == len(stamps)
         steady = (frames - workers) / max(1e-9, stamps[-1] - stamps[workers - 1])
-        return steady, frames / wall
+        cpu_ms = 1000 * (cpu_s[-1] - cpu_s[workers - 1]) / max(1, frames - workers)
+        return steady, frames / wall, cpu_ms
     finally:
         shutil.rmtree(out, ignore_errors=True)
 
@@ -233,7 +241,7 @@ def throughput(args: argparse.Namespace, trees: list[Tree]) -> None:
         steady: dict[int, dict[str, float]] = {}
         for workers in args.workers:
             spec = {**base, "kind": "generate", "frames": n, "workers": workers}
-            values: dict[str, list[tuple[float, float]]] = {t.label: [] for t in trees}
+            values: dict[str, list[tuple[float, float, float]]] = {t.label: [] for t in trees}
             for _ in range(args.repeats):
                 for tree in trees:
                     values[tree.label].append(tuple(run_child(tree, spec)))
@@ -241,6 +249,9 @@ def throughput(args: argparse.Namespace, trees: list[Tree]) -> None:
             wall = {k: statistics.median(r[1] for r in v) for k, v in values.items()}
             print_row(f"generate W={workers} steady", steady[workers], trees)
             print_row(f"generate W={workers} wall", wall, trees)
+            if workers == 1:
+                cpu = {k: statistics.median(r[2] for r in v) for k, v in values.items()}
+                print_row("generate W=1 CPU ms/frame", cpu, trees)
         short = None
         if 2 in steady and args.short_frames:
             spec = {**base, "kind": "generate", "frames": args.short_frames, "workers": 2}
