@@ -47,6 +47,11 @@ def test_rgb_png_round_trips_with_the_up_filter():
     data = encode_png_rgb(rgb)
     assert (decode_png_rgb(data, "x.png") == rgb).all()
     assert _row_filters(data) == {2}  # Up on every row (libpng's default mixes all five)
+    # zlib's run-length coder ignores the level: other levels keep libpng's adaptive filters
+    # (on rendered frames a higher level then gives smaller files: tests/generation)
+    level3 = encode_png_rgb(rgb, level=3)
+    assert (decode_png_rgb(level3, "x.png") == rgb).all()
+    assert len(_row_filters(level3)) > 1
 
 
 def test_mask_png_round_trips_unfiltered_and_run_length_coded():
