@@ -7,10 +7,10 @@ R-CNN-like masks) at each resolution (intrinsics scaled), written as fast-ycb by
 asset cache that the first (unmeasured) run fills, as ``roft-sim generate``'s default cache is
 after its first run.
 
-Every measurement runs in a fresh process; with ``--baseline-ref REF`` the same measurement also
-runs on the package as it was at git commit REF (extracted with ``git archive``), interleaved
-with the current one (baseline, now, baseline, now, ...), so that both see the same machine load;
-the table prints medians and the ratio now / baseline. Rows:
+Every measurement runs in a fresh process; with ``--baseline-ref REF [REF ...]`` the same
+measurement also runs on the package as it was at each git commit REF (extracted with ``git
+archive``), interleaved with the current one (baseline, ..., now, baseline, ..., now), so that all
+see the same machine load; the table prints medians and the ratio now / each baseline. Rows:
 
 - ``render+seg+flow``: :class:`SceneRenderer` with segmentation plus exact ground-truth flow from
   the previous frame, frames/s over N frames (what ``bench_render.py``'s ``+seg+flow`` mode
@@ -19,6 +19,10 @@ the table prints medians and the ratio now / baseline. Rows:
   frames are reported written: (N - W) / (t_last - t_W), t_W when the W-th frame was written
   (start-up, spawning and finalize left out; one unit of N/W frames per worker);
 - ``generate W=w wall``: N / the whole run's wall time (start-up and finalize included);
+- ``generate W=1 CPU ms/frame``: CPU time (user + system, every thread of the process: the
+  render, networks and writer threads and llvmpipe's) per frame over the same steady frames,
+  from ``getrusage``; a shared machine's load changes it far less than the rates (W=1 only: it
+  generates in the measuring process);
 - ``short W=2 wall``: ``--short-frames`` frames (default 24) with 2 workers, wall frames/s: what
   a short run sees; printed as a fraction of the 2-worker steady rate too.
 
@@ -29,6 +33,7 @@ Memory: peak resident set size (``ru_maxrss``) of a fresh process generating a s
 sequence of the CI cracker-box scenario at 96x72 in-process; flat when frames stream to disk.
 
     python benchmarks/bench_generate.py --baseline-ref main       # everything
+    python benchmarks/bench_generate.py --baseline-ref 33cdec7 c52c313 --skip-memory
     python benchmarks/bench_generate.py --resolutions 640x480 --repeats 1 --skip-memory
     python benchmarks/bench_generate.py --skip-throughput --long-frames 3000
 """
@@ -78,17 +83,20 @@ def child_render(resolution: tuple[int, int], frames: int, cache: Path) -> float
 
 def child_generate(
     resolution: tuple[int, int], frames: int, workers: int, fmt: str, cache: Path
-) -> tuple[float, float]:
-    """(steady, wall) frames/s of one run (see the module doc)."""
+) -> tuple[float, float, float]:
+    """(steady, wall) frames/s and CPU ms per steady frame (W=1) of one run (module doc)."""
     from roft_sim.generation import GenerationOptions, ScenarioOverrides, generate_dataset
     from roft_sim.render.gl_backend import require_gl_backend
 
     backend = require_gl_backend(os.environ)
     out = Path(tempfile.mkdtemp(prefix="bench_generate_"))
     stamps: list[float] = []
+    cpu_s: list[float] = []
 
     def on_frames(n: int) -> None:
+        usage = resource.getrusage(resource.RUSAGE_SELF)
         stamps.extend([time.perf_counter()] * n)
+        cpu_s.extend([usage.ru_utime + usage.ru_stime] * n)
 
     known = {f.name for f in dataclasses.fields(GenerationOptions)}
     options = {
@@ -111,7 +119,8 @@ def child_generate(
         wall = time.perf_counter() - t0
         assert summary.finished and summary.frames_generated == frames == len(stamps)
         steady = (frames - workers) / max(1e-9, stamps[-1] - stamps[workers - 1])
-        return steady, frames / wall
+        cpu_ms = 1000 * (cpu_s[-1] - cpu_s[workers - 1]) / max(1, frames - workers)
+        return steady, frames / wall, cpu_ms
     finally:
         shutil.rmtree(out, ignore_errors=True)
 
@@ -203,9 +212,11 @@ def measure(
 
 
 def print_row(name: str, medians: dict[str, float], trees: list[Tree]) -> None:
+    """Medians of every tree, then now / each baseline (the last tree is now)."""
     cells = " ".join(f"{medians[t.label]:>9.2f}" for t in trees)
-    ratio = f"{medians[trees[1].label] / medians[trees[0].label]:>7.2f}x" if len(trees) == 2 else ""
-    print(f"{name:<30} {cells} {ratio} {load1():>6.2f}", flush=True)
+    now = medians[trees[-1].label]
+    ratios = " ".join(f"{now / medians[t.label]:>7.2f}x" for t in trees[:-1])
+    print(f"{name:<30} {cells} {ratios} {load1():>6.2f}", flush=True)
 
 
 def throughput(args: argparse.Namespace, trees: list[Tree]) -> None:
@@ -216,7 +227,8 @@ def throughput(args: argparse.Namespace, trees: list[Tree]) -> None:
         f"{', '.join(f'{x:.2f}' for x in os.getloadavg())}; fast_ycb 003_cracker_box, default "
         f"networks, {args.format}; medians over {args.repeats} interleaved runs [frames/s]"
     )
-    print(f"{'':<30} {heads} {'ratio' if len(trees) == 2 else '':>8} {'load1':>6}")
+    ratios = " ".join(f"{'/' + t.label:>8}" for t in trees[:-1])
+    print(f"{'':<30} {heads} {ratios} {'load1':>6}")
     for text in args.resolutions:
         w, h = (int(v) for v in text.lower().split("x"))
         n = args.frames or (48 if w * h <= 640 * 480 else 24)
@@ -229,7 +241,7 @@ def throughput(args: argparse.Namespace, trees: list[Tree]) -> None:
         steady: dict[int, dict[str, float]] = {}
         for workers in args.workers:
             spec = {**base, "kind": "generate", "frames": n, "workers": workers}
-            values: dict[str, list[tuple[float, float]]] = {t.label: [] for t in trees}
+            values: dict[str, list[tuple[float, float, float]]] = {t.label: [] for t in trees}
             for _ in range(args.repeats):
                 for tree in trees:
                     values[tree.label].append(tuple(run_child(tree, spec)))
@@ -237,6 +249,9 @@ def throughput(args: argparse.Namespace, trees: list[Tree]) -> None:
             wall = {k: statistics.median(r[1] for r in v) for k, v in values.items()}
             print_row(f"generate W={workers} steady", steady[workers], trees)
             print_row(f"generate W={workers} wall", wall, trees)
+            if workers == 1:
+                cpu = {k: statistics.median(r[2] for r in v) for k, v in values.items()}
+                print_row("generate W=1 CPU ms/frame", cpu, trees)
         short = None
         if 2 in steady and args.short_frames:
             spec = {**base, "kind": "generate", "frames": args.short_frames, "workers": 2}
@@ -271,13 +286,13 @@ def memory(args: argparse.Namespace, tree: Tree) -> None:
 
 def baseline_tree(ref: str, scratch: Path) -> Tree:
     """The package at git commit ``ref`` of this repository, extracted under ``scratch``."""
-    folder = scratch / "baseline"
+    folder = scratch / f"baseline_{ref}"
     folder.mkdir()
     archive = subprocess.run(
         ["git", "-C", str(REPO), "archive", ref, "roft_sim"], capture_output=True, check=True
     ).stdout
     subprocess.run(["tar", "-x", "-C", str(folder)], input=archive, check=True)
-    return Tree(label=ref[:9], pythonpath=folder, cache=scratch / "cache_baseline")
+    return Tree(label=ref[:9], pythonpath=folder, cache=scratch / f"cache_baseline_{ref}")
 
 
 def main() -> None:
@@ -288,7 +303,9 @@ def main() -> None:
     p.add_argument("--frames", type=int, help="N (default 48 at <= 640x480, else 24)")
     p.add_argument("--short-frames", type=int, default=24, help="frames of the short run")
     p.add_argument("--repeats", type=int, default=3)
-    p.add_argument("--baseline-ref", help="git commit to measure side by side (e.g. main)")
+    p.add_argument(
+        "--baseline-ref", nargs="+", default=[], help="git commits to measure side by side"
+    )
     p.add_argument("--short-frames-memory", type=int, default=150)
     p.add_argument("--long-frames", type=int, default=3000)
     p.add_argument("--skip-throughput", action="store_true")
@@ -305,9 +322,7 @@ def main() -> None:
     scratch = Path(tempfile.mkdtemp(prefix="bench_generate_trees_"))
     try:
         now = Tree(label="now", pythonpath=REPO, cache=scratch / "cache_now")
-        trees = (
-            [now] if args.baseline_ref is None else [baseline_tree(args.baseline_ref, scratch), now]
-        )
+        trees = [*(baseline_tree(ref, scratch) for ref in args.baseline_ref), now]
         if not args.skip_throughput:
             throughput(args, trees)
         if not args.skip_memory:

@@ -224,6 +224,7 @@ class SequenceGenerator:
         self.networks = scenario.networks
         self._silhouettes: MujocoDepthRenderer | None = None
         self._distractor_silhouettes: list[MujocoDepthRenderer] = []
+        self._unoccluded_detections: tuple[Bool, F64] | None = None
         self._renderer = SceneRenderer(
             scenario,
             assets_dir=assets_dir,
@@ -392,17 +393,31 @@ class SequenceGenerator:
 
     def _pose_detection(self, k: int, vis_k: float) -> F64 | None:
         """Frame k's detection: the estimator over the whole track, frame k's visible fraction
-        (the other frames' values do not change frame k's result; tests/generation checks)."""
-        n = self.n_frames
-        vis = np.ones(n)
-        vis[k] = vis_k
+        (the other frames' values do not change frame k's result; tests/generation checks).
+
+        The track's sample with every frame fully visible is the same for every frame whose
+        object is fully visible (the same inputs), so it is computed once and kept: the
+        estimator's O(N) work then runs only for partly visible frames."""
+        if vis_k == 1.0:
+            if self._unoccluded_detections is None:
+                self._unoccluded_detections = self._pose_sample(np.ones(self.n_frames))
+            valid, T_cam_obj = self._unoccluded_detections
+        else:
+            vis = np.ones(self.n_frames)
+            vis[k] = vis_k
+            valid, T_cam_obj = self._pose_sample(vis)
+        return T_cam_obj[k].copy() if valid[k] else None
+
+    def _pose_sample(self, visible_fraction: F64) -> tuple[Bool, F64]:
+        """(N,) valid flags and (N, 4, 4) detected ``T_cam_obj`` [m] of the pose estimator
+        over the whole track with the given (N,) visible fractions."""
         sample = sample_pose_detections(
             self.track,
             self.networks.pose.estimator_for(self.scenario.object.name_or_path),
             self.scenario.rng(POSE_ESTIMATOR_STREAM),
-            visible_fraction=vis,
+            visible_fraction=visible_fraction,
         )
-        return sample.T_cam_obj[k].copy() if sample.valid[k] else None
+        return np.asarray(sample.valid, dtype=bool), np.asarray(sample.T_cam_obj)
 
     # ---------------------------------------------------------------------------- lifetime
     def close(self) -> None:

@@ -52,6 +52,7 @@ __all__ = [
     "DisFlowSource",
     "DIS_PRESETS",
     "NvofLikeFlowSource",
+    "block_mean_flow",
     "NVOF_GRID_PX",
     "NVOF_PRECISION_PX",
     "s10_5_from_flow_px",
@@ -376,6 +377,50 @@ def flow_px_from_s10_5(q: NDArray[np.int16]) -> F32:
     return (np.asarray(q, dtype=np.float32) / np.float32(_S10_5_SCALE)).astype(np.float32)
 
 
+def block_mean_flow(flow_px: F32, grid_px: int) -> tuple[F64, NDArray[np.bool_]]:
+    """Mean of a dense flow over each ``grid_px`` x ``grid_px`` block's finite pixels.
+
+    The sums run in float64, block pixel by block pixel in row-major order (row 0 of the block
+    left to right, then row 1, ...), which is the order of numpy's ``sum(axis=(1, 3))`` on the
+    ``(hg, g, wg, g, 2)`` view: the result is bit for bit the one of that reduction (and of the
+    version before this function), in about a tenth of its time (the multi-axis reduction
+    walks the array with a stride per element).
+
+    Args:
+        flow_px: (H, W, 2) float32 flow [px], full resolution; NaN/inf = no flow at a pixel.
+        grid_px: block side g [px]; blocks on the right and bottom border are partial.
+
+    Returns:
+        ``(mean, valid)``: (ceil(H/g), ceil(W/g), 2) float64 block mean [px] (0 where a block
+        has no finite pixel) and (ceil(H/g), ceil(W/g)) bool, True where it has one.
+    """
+    h, w = flow_px.shape[:2]
+    g = int(grid_px)
+    hg, wg = -(-h // g), -(-w // g)
+    if h % g == 0 and w % g == 0 and bool(np.isfinite(flow_px).all()):
+        blocks = flow_px.reshape(hg, g, wg, g, 2)
+        total = blocks[:, 0, :, 0].astype(np.float64)
+        for i in range(g):
+            for j in range(g):
+                if i or j:
+                    total += blocks[:, i, :, j]
+        return total / float(g * g), np.ones((hg, wg), dtype=np.bool_)
+    padded = np.full((hg * g, wg * g, 2), np.nan, dtype=np.float32)
+    padded[:h, :w] = flow_px
+    blocks = padded.reshape(hg, g, wg, g, 2)
+    total = np.zeros((hg, wg, 2), dtype=np.float64)
+    count = np.zeros((hg, wg), dtype=np.int64)
+    for i in range(g):
+        for j in range(g):
+            cell = blocks[:, i, :, j]
+            ok = cast(NDArray[np.bool_], np.isfinite(cell).all(axis=2))  # (hg, wg) array
+            total += np.where(ok[..., None], cell, np.float32(0.0))
+            count += ok
+    valid = count > 0
+    mean = np.where(valid[..., None], total / np.maximum(count, 1)[..., None], 0.0)
+    return mean, valid
+
+
 class NvofLikeFlowSource:
     """Any flow reduced to NVOF 1.0's output: one vector per ``grid_px`` block, S10.5 int16.
 
@@ -420,16 +465,8 @@ class NvofLikeFlowSource:
         if inner is None:
             return None
         h, w = sequence.intrinsics.shape
+        mean, valid = block_mean_flow(inner.dense(h, w), self.grid_px)
         g = self.grid_px
-        hg, wg = -(-h // g), -(-w // g)
-        dense = np.full((hg * g, wg * g, 2), np.nan, dtype=np.float64)
-        dense[:h, :w] = inner.dense(h, w)
-        blocks = dense.reshape(hg, g, wg, g, 2)
-        ok = cast(NDArray[np.bool_], np.isfinite(blocks).all(axis=4))  # (hg, g, wg, g) array
-        count = ok.sum(axis=(1, 3))
-        total = np.where(ok[..., None], blocks, 0.0).sum(axis=(1, 3))
-        valid = count > 0
-        mean = np.where(valid[..., None], total / np.maximum(count, 1)[..., None], 0.0)
         rounded = np.round(mean / self.precision_px) * self.precision_px
         flow = flow_px_from_s10_5(s10_5_from_flow_px(rounded))
         return FlowField(

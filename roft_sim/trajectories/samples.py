@@ -14,7 +14,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import ndimage, signal
 
 from roft_sim.errors import ConfigError
 from roft_sim.geometry.so3 import matrix_from_quat, quat_from_matrix
@@ -141,6 +140,8 @@ def remove_position_drift(samples: PoseSamples, window_s: float) -> PoseSamples:
             f"remove_drift_window_s = {window_s} s covers fewer than 3 samples at {rate:.4g} Hz; "
             "use a longer window (about 2 s for walking)"
         )
+    from scipy import ndimage  # here: generation workers never need it (1-2 s to import)
+
     p = samples.T_ref_obj[:, :3, 3]
     mean = ndimage.uniform_filter1d(p, size=n, axis=0, mode="nearest")
     T = samples.T_ref_obj.copy()
@@ -176,6 +177,8 @@ def lowpass_poses(samples: PoseSamples, cutoff_hz: float) -> PoseSamples:
             f"lowpass_hz = {cutoff_hz} must lie between 0 and the Nyquist frequency "
             f"{0.5 * rate:.4g} Hz of these {rate:.4g} Hz samples"
         )
+    from scipy import signal  # here: generation workers never need it (1-2 s to import)
+
     sos = signal.butter(LOWPASS_ORDER, cutoff_hz, btype="low", fs=rate, output="sos")
     padlen = 3 * (2 * len(sos) + 1)
     if len(samples) <= padlen:

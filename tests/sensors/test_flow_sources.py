@@ -21,6 +21,7 @@ from roft_sim.sensors.flow_sources import (
     NoisyGroundTruthFlowSource,
     NvofLikeFlowSource,
     StoredFlowSource,
+    block_mean_flow,
     flow_px_from_s10_5,
     frame_rng,
     make_flow_source,
@@ -326,3 +327,39 @@ def test_gt_source_needs_ground_truth():
     seq = _translating_sequence(1.0, 0.0)
     with pytest.raises(ConfigError, match="no ground-truth poses"):
         GroundTruthFlowSource().flow(seq, 0, 1)
+
+
+def _block_mean_by_reduction(flow_px: np.ndarray, g: int) -> tuple[np.ndarray, np.ndarray]:
+    """The NVOF-like block mean as numpy's multi-axis reduction writes it (the oracle)."""
+    h, w = flow_px.shape[:2]
+    hg, wg = -(-h // g), -(-w // g)
+    dense = np.full((hg * g, wg * g, 2), np.nan, dtype=np.float64)
+    dense[:h, :w] = flow_px
+    blocks = dense.reshape(hg, g, wg, g, 2)
+    ok = np.isfinite(blocks).all(axis=4)
+    count = ok.sum(axis=(1, 3))
+    total = np.where(ok[..., None], blocks, 0.0).sum(axis=(1, 3))
+    valid = count > 0
+    return np.where(valid[..., None], total / np.maximum(count, 1)[..., None], 0.0), valid
+
+
+@pytest.mark.parametrize(
+    ("shape", "holes"), [((48, 64), False), ((48, 64), True), ((50, 61), False), ((50, 61), True)]
+)
+def test_block_mean_flow_is_bit_identical_to_the_reduction(shape, holes):
+    # Magnitudes over 24 decades make float64 sums of float32 values depend on their order:
+    # the block mean must add in the reduction's order to give the same bits.
+    rng = np.random.default_rng(5)
+    for _ in range(10):
+        scale = 10.0 ** rng.integers(-12, 12, shape + (2,))
+        flow = (rng.standard_normal(shape + (2,)) * scale).astype(np.float32)
+        if holes:
+            flow[rng.random(shape) < 0.3] = np.nan
+            flow[:8, :8] = np.inf  # whole blocks without a finite pixel
+        mean, valid = block_mean_flow(flow, 4)
+        want_mean, want_valid = _block_mean_by_reduction(flow, 4)
+        assert mean.dtype == np.float64 and mean.shape == want_mean.shape
+        np.testing.assert_array_equal(valid, want_valid)
+        np.testing.assert_array_equal(mean, want_mean)
+        if holes:
+            assert not valid[:2, :2].any() and (mean[:2, :2] == 0).all()
