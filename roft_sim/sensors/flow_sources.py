@@ -11,8 +11,8 @@ spec                   source
 ``gt+noise[:<s>]``     :class:`NoisyGroundTruthFlowSource`: gt plus a configurable end-point-error
                        model (:class:`FlowNoiseConfig` defaults; ``:<s>`` sets ``sigma_px``)
 ``dis[:<preset>]``     :class:`DisFlowSource`: OpenCV DIS on the grey rgb images, any stride
-``nvof-like:<inner>``  :class:`NvofLikeFlowSource`: any source averaged on 4x4 blocks and quantised
-                       to NVOF's S10.5 int16, like the reference ``nvof_1_slow`` set
+``nvof-like:<inner>``  :class:`NvofLikeFlowSource`: any source as one vector per 4x4 block (its
+                       medoid), in NVOF's S10.5 int16, like the reference ``nvof_1_slow`` set
 ``stored:<set>``       :class:`StoredFlowSource`: the sequence's stored flow set (stride 1 only)
 =====================  ============================================================================
 
@@ -24,7 +24,7 @@ which other pairs were asked for, or in which order.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Protocol, cast, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
 import cv2
 import numpy as np
@@ -379,11 +379,17 @@ def flow_px_from_s10_5(q: NDArray[np.int16]) -> F32:
 class NvofLikeFlowSource:
     """Any flow reduced to NVOF 1.0's output: one vector per ``grid_px`` block, S10.5 int16.
 
-    Each block's vector is the mean of the inner flow over the block's valid pixels (NVOF
-    estimates one motion per block, so a block on a motion boundary gets a mixture), rounded to
-    the hardware's ``precision_px`` (1/4 px, :data:`NVOF_PRECISION_PX`), stored in S10.5 and
-    saturated to +-1024 px. So against the block mean the error is at most ``precision_px / 2``;
-    against the inner flow at a pixel at most that plus the flow's spread within the block.
+    One vector per block, like NVOF's hardware, which does block-based matching: one vector per
+    block with a matching cost (NVIDIA Optical Flow SDK; OpenCV ``cv::cuda::NvidiaHWOpticalFlow``:
+    "block-based optical flow vectors", with a per-vector cost buffer), so a block's vector is a
+    displacement that matches the block. A block whose inner vectors agree within
+    ``precision_px`` (one motion) gets their mean; a block with more spread (a motion boundary)
+    gets their L1 medoid, one of the motions in it (the majority's), not their average, which
+    matches neither (the average was used for every block before and put a ring of mixed
+    motion around every object). Rounded to the hardware's ``precision_px`` (1/4 px,
+    :data:`NVOF_PRECISION_PX`), stored in S10.5 and saturated to +-1024 px. So against the inner
+    flow at a pixel the error is at most ``precision_px / 2`` plus the flow's spread within the
+    block.
     Blocks without a valid pixel are invalid (0). Consumers read the vector of pixel ``(u, v)``
     at ``[v // 4, u // 4]``. The estimation errors (large displacements, low texture, smoothing
     across motion boundaries) are the inner source's: pair it with ``dis`` (docs/sensors.md
@@ -424,13 +430,11 @@ class NvofLikeFlowSource:
         hg, wg = -(-h // g), -(-w // g)
         dense = np.full((hg * g, wg * g, 2), np.nan, dtype=np.float64)
         dense[:h, :w] = inner.dense(h, w)
-        blocks = dense.reshape(hg, g, wg, g, 2)
-        ok = cast(NDArray[np.bool_], np.isfinite(blocks).all(axis=4))  # (hg, g, wg, g) array
-        count = ok.sum(axis=(1, 3))
-        total = np.where(ok[..., None], blocks, 0.0).sum(axis=(1, 3))
-        valid = count > 0
-        mean = np.where(valid[..., None], total / np.maximum(count, 1)[..., None], 0.0)
-        rounded = np.round(mean / self.precision_px) * self.precision_px
+        # (hg * wg, g * g, 2): the vectors of each block, NaN where the inner flow is invalid
+        vectors = dense.reshape(hg, g, wg, g, 2).transpose(0, 2, 1, 3, 4).reshape(-1, g * g, 2)
+        valid = np.isfinite(vectors).all(axis=2).any(axis=1).reshape(hg, wg)
+        block = _block_vectors(vectors, self.precision_px).reshape(hg, wg, 2)
+        rounded = np.round(block / self.precision_px) * self.precision_px
         flow = flow_px_from_s10_5(s10_5_from_flow_px(rounded))
         return FlowField(
             flow_px=flow,
@@ -439,6 +443,35 @@ class NvofLikeFlowSource:
             grid_px=g,
             valid=None if (valid.all() and inner.valid is None) else valid,
         )
+
+
+def _block_vectors(vectors: NDArray[np.float64], spread_px: float) -> NDArray[np.float64]:
+    """(N, n, 2) vectors of N blocks (NaN = invalid) -> (N, 2): one vector per block.
+
+    A block whose valid vectors agree within ``spread_px`` on both components (one motion) gets
+    their mean; any other block (a motion boundary) its L1 medoid, the valid vector with the
+    least summed L1 distance to the others (the first such on ties), i.e. one of the motions in
+    it, the majority's. (0, 0) for a block without a valid vector."""
+    ok = np.isfinite(vectors).all(axis=2)  # (N, n)
+    z = np.where(ok[..., None], vectors, 0.0)
+    count = ok.sum(axis=1)
+    out = z.sum(axis=1) / np.maximum(count, 1)[:, None]
+    spread = np.ptp(vectors, axis=1).max(axis=1)  # NaN where a vector is invalid
+    partly = np.flatnonzero((count > 0) & (count < vectors.shape[1]))
+    if partly.size:
+        part = vectors[partly]
+        spread[partly] = (np.nanmax(part, axis=1) - np.nanmin(part, axis=1)).max(axis=1)
+    mixed = np.flatnonzero(spread > spread_px)  # NaN (no valid vector) compares False
+    for start in range(0, mixed.size, 2048):
+        rows = mixed[start : start + 2048]
+        v, m = z[rows].astype(np.float32), ok[rows]
+        dist = np.abs(v[:, :, None, 0] - v[:, None, :, 0]) + np.abs(
+            v[:, :, None, 1] - v[:, None, :, 1]
+        )
+        cost = np.einsum("cij,cj->ci", dist, m.astype(np.float32))
+        best = np.where(m, cost, np.inf).argmin(axis=1)
+        out[rows] = z[rows, best]
+    return out
 
 
 def make_flow_source(spec: str, *, seed: int) -> FlowSource:

@@ -227,13 +227,40 @@ def test_nvof_like_quantisation_and_block_bounds(precision_px):
     ok = f_nv.valid
     assert ok is not None and 0 < (~ok).sum() < ok.size
     np.testing.assert_array_equal(~ok, np.isnan(block_mean).all(-1))  # no valid pixel -> invalid
-    assert np.abs(f_nv.flow_px[ok] - block_mean[ok]).max() <= half_step + 1e-6
+    one_motion = ok & (spread.max(-1) <= precision_px)  # these get the block mean
+    assert one_motion.sum() > ok.sum() // 2
+    assert np.abs(f_nv.flow_px[one_motion] - block_mean[one_motion]).max() <= half_step + 1e-6
     # Per pixel: |nvof - inner| <= half a step + the inner flow's spread within the block.
     per_pixel = np.abs(f_nv.dense(*CAM.shape) - dense_in)
     bound = np.repeat(np.repeat(spread, 4, 0), 4, 1) + half_step + 1e-6
     finite = np.isfinite(per_pixel).all(-1)
     assert (per_pixel[finite] <= bound[finite]).all()
     assert NvofLikeFlowSource(StoredFlowSource("exact")).flow(seq, 0, 2) is None
+
+
+def test_nvof_like_boundary_block_gets_one_of_its_motions_not_their_average():
+    """NVOF matches blocks (one displacement per 4x4 block, with a matching cost), so a block on
+    a motion boundary gets the motion of most of its pixels; the block mean gave a vector that
+    belongs to neither (here (6, -2.25) px for an object moving (8, -3) px over a static
+    background)."""
+
+    class Boundary:
+        name = "boundary"
+
+        def flow(self, sequence, from_k, to_k):
+            h, w = sequence.intrinsics.shape
+            f = np.zeros((h, w, 2), np.float32)
+            f[:, : w // 2 + 3, 0] = 8.0  # object (left) moving; 3 of 4 columns of a block
+            f[:, : w // 2 + 3, 1] = -3.0
+            return FlowField(flow_px=f, from_k=from_k, to_k=to_k)
+
+    seq = planar_sequence(3)
+    h, w = CAM.shape
+    f = NvofLikeFlowSource(Boundary()).flow(seq, 0, 1)  # type: ignore[arg-type]
+    col = (w // 2) // 4  # the block column holding the boundary: 3 object + 1 static column
+    np.testing.assert_array_equal(f.flow_px[:, col - 1], np.tile([8.0, -3.0], (h // 4, 1)))
+    np.testing.assert_array_equal(f.flow_px[:, col + 1], 0.0)
+    np.testing.assert_array_equal(f.flow_px[:, col], np.tile([8.0, -3.0], (h // 4, 1)))
 
 
 def test_nvof_like_precision_must_be_whole_s10_5_steps():

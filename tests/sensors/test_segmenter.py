@@ -177,7 +177,9 @@ def test_boundary_error_relative_to_the_object_does_not_depend_on_the_camera_res
     """The network runs on the same 640x480 padded input at 1280x720 and 640x360, so the mask's
     IoU with the visible mask (the boundary error relative to the object) is the same at both
     sizes; boundary distances stated in full-resolution pixels gave 640x360 twice the noise."""
-    cfg = dataclasses.replace(SegmenterConfig(), miss_probability=0.0, spurious_blob_probability=0.0)
+    cfg = dataclasses.replace(
+        SegmenterConfig(), miss_probability=0.0, spurious_blob_probability=0.0
+    )
     means = {}
     for width, height in ((1280, 720), (640, 360)):
         gt = _silhouette(width, height)
