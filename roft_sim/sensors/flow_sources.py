@@ -24,7 +24,7 @@ which other pairs were asked for, or in which order.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Protocol, runtime_checkable
+from typing import Any, Protocol, cast, runtime_checkable
 
 import cv2
 import numpy as np
@@ -432,7 +432,8 @@ class NvofLikeFlowSource:
         dense[:h, :w] = inner.dense(h, w)
         # (hg * wg, g * g, 2): the vectors of each block, NaN where the inner flow is invalid
         vectors = dense.reshape(hg, g, wg, g, 2).transpose(0, 2, 1, 3, 4).reshape(-1, g * g, 2)
-        valid = np.isfinite(vectors).all(axis=2).any(axis=1).reshape(hg, wg)
+        finite = cast(NDArray[np.bool_], np.isfinite(vectors).all(axis=2))  # (hg * wg, g * g)
+        valid = finite.any(axis=1).reshape(hg, wg)
         block = _block_vectors(vectors, self.precision_px).reshape(hg, wg, 2)
         rounded = np.round(block / self.precision_px) * self.precision_px
         flow = flow_px_from_s10_5(s10_5_from_flow_px(rounded))
@@ -452,10 +453,10 @@ def _block_vectors(vectors: NDArray[np.float64], spread_px: float) -> NDArray[np
     their mean; any other block (a motion boundary) its L1 medoid, the valid vector with the
     least summed L1 distance to the others (the first such on ties), i.e. one of the motions in
     it, the majority's. (0, 0) for a block without a valid vector."""
-    ok = np.isfinite(vectors).all(axis=2)  # (N, n)
+    ok = cast(NDArray[np.bool_], np.isfinite(vectors).all(axis=2))  # (N, n)
     z = np.where(ok[..., None], vectors, 0.0)
     count = ok.sum(axis=1)
-    out = z.sum(axis=1) / np.maximum(count, 1)[:, None]
+    out: NDArray[np.float64] = z.sum(axis=1) / np.maximum(count, 1)[:, None]
     spread = np.ptp(vectors, axis=1).max(axis=1)  # NaN where a vector is invalid
     partly = np.flatnonzero((count > 0) & (count < vectors.shape[1]))
     if partly.size:
