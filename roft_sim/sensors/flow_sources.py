@@ -11,8 +11,8 @@ spec                   source
 ``gt+noise[:<s>]``     :class:`NoisyGroundTruthFlowSource`: gt plus a configurable end-point-error
                        model (:class:`FlowNoiseConfig` defaults; ``:<s>`` sets ``sigma_px``)
 ``dis[:<preset>]``     :class:`DisFlowSource`: OpenCV DIS on the grey rgb images, any stride
-``nvof-like:<inner>``  :class:`NvofLikeFlowSource`: any source averaged on 4x4 blocks and quantised
-                       to NVOF's S10.5 int16, like the reference ``nvof_1_slow`` set
+``nvof-like:<inner>``  :class:`NvofLikeFlowSource`: any source as one vector per 4x4 block (its
+                       medoid), in NVOF's S10.5 int16, like the reference ``nvof_1_slow`` set
 ``stored:<set>``       :class:`StoredFlowSource`: the sequence's stored flow set (stride 1 only)
 =====================  ============================================================================
 
@@ -53,6 +53,7 @@ __all__ = [
     "DIS_PRESETS",
     "NvofLikeFlowSource",
     "block_mean_flow",
+    "one_motion_per_block",
     "NVOF_GRID_PX",
     "NVOF_PRECISION_PX",
     "s10_5_from_flow_px",
@@ -424,11 +425,17 @@ def block_mean_flow(flow_px: F32, grid_px: int) -> tuple[F64, NDArray[np.bool_]]
 class NvofLikeFlowSource:
     """Any flow reduced to NVOF 1.0's output: one vector per ``grid_px`` block, S10.5 int16.
 
-    Each block's vector is the mean of the inner flow over the block's valid pixels (NVOF
-    estimates one motion per block, so a block on a motion boundary gets a mixture), rounded to
-    the hardware's ``precision_px`` (1/4 px, :data:`NVOF_PRECISION_PX`), stored in S10.5 and
-    saturated to +-1024 px. So against the block mean the error is at most ``precision_px / 2``;
-    against the inner flow at a pixel at most that plus the flow's spread within the block.
+    One vector per block, like NVOF's hardware, which does block-based matching: one vector per
+    block with a matching cost (NVIDIA Optical Flow SDK; OpenCV ``cv::cuda::NvidiaHWOpticalFlow``:
+    "block-based optical flow vectors", with a per-vector cost buffer), so a block's vector is a
+    displacement that matches the block. A block whose inner vectors agree within
+    ``precision_px`` (one motion) gets their mean; a block with more spread (a motion boundary)
+    gets their L1 medoid, one of the motions in it (the majority's), not their average, which
+    matches neither (the average was used for every block before and put a ring of mixed
+    motion around every object). Rounded to the hardware's ``precision_px`` (1/4 px,
+    :data:`NVOF_PRECISION_PX`), stored in S10.5 and saturated to +-1024 px. So against the inner
+    flow at a pixel the error is at most ``precision_px / 2`` plus the flow's spread within the
+    block.
     Blocks without a valid pixel are invalid (0). Consumers read the vector of pixel ``(u, v)``
     at ``[v // 4, u // 4]``. The estimation errors (large displacements, low texture, smoothing
     across motion boundaries) are the inner source's: pair it with ``dis`` (docs/sensors.md
@@ -465,9 +472,11 @@ class NvofLikeFlowSource:
         if inner is None:
             return None
         h, w = sequence.intrinsics.shape
-        mean, valid = block_mean_flow(inner.dense(h, w), self.grid_px)
+        dense = inner.dense(h, w)
+        mean, valid = block_mean_flow(dense, self.grid_px)
         g = self.grid_px
-        rounded = np.round(mean / self.precision_px) * self.precision_px
+        block = one_motion_per_block(dense, mean, self.grid_px, self.precision_px)
+        rounded = np.round(block / self.precision_px) * self.precision_px
         flow = flow_px_from_s10_5(s10_5_from_flow_px(rounded))
         return FlowField(
             flow_px=flow,
@@ -476,6 +485,61 @@ class NvofLikeFlowSource:
             grid_px=g,
             valid=None if (valid.all() and inner.valid is None) else valid,
         )
+
+
+def one_motion_per_block(flow_px: F32, mean_px: F64, grid_px: int, spread_px: float) -> F64:
+    """One vector per block: the block mean where the block holds one motion, else one of its
+    motions (see :class:`NvofLikeFlowSource`).
+
+    A block whose finite vectors agree within ``spread_px`` on both components keeps its mean;
+    any other block (a motion boundary) gets its L1 medoid, the finite vector with the least
+    summed L1 distance to the others (the first such in row-major order on ties), i.e. the
+    majority's motion. The spread comes from strided minima and maxima (16 array operations for
+    4x4 blocks) and the medoid is computed for the mixed blocks alone, so smooth flow costs
+    little more than the mean.
+
+    Args:
+        flow_px: (H, W, 2) float32 flow [px], full resolution; NaN/inf = no flow at a pixel.
+        mean_px: (ceil(H/g), ceil(W/g), 2) float64 block means [px], from
+            :func:`block_mean_flow` (0 for a block without a finite pixel).
+        grid_px: block side g [px].
+        spread_px: the largest per-component spread of one motion [px].
+
+    Returns:
+        (ceil(H/g), ceil(W/g), 2) float64 block vectors [px].
+    """
+    h, w = flow_px.shape[:2]
+    g = int(grid_px)
+    hg, wg = mean_px.shape[:2]
+    if h == hg * g and w == wg * g and bool(np.isfinite(flow_px).all()):
+        blocks = np.asarray(flow_px, dtype=np.float32).reshape(hg, g, wg, g, 2)
+    else:
+        padded = np.full((hg * g, wg * g, 2), np.nan, dtype=np.float32)
+        padded[:h, :w] = flow_px
+        padded[~np.isfinite(padded).all(axis=2)] = np.nan
+        blocks = padded.reshape(hg, g, wg, g, 2)
+    lo = np.full((hg, wg, 2), np.inf, dtype=np.float32)
+    hi = np.full((hg, wg, 2), -np.inf, dtype=np.float32)
+    for i in range(g):
+        for j in range(g):
+            np.fmin(lo, blocks[:, i, :, j], out=lo)  # fmin/fmax skip NaN
+            np.fmax(hi, blocks[:, i, :, j], out=hi)
+    spread = (hi - lo).max(axis=2)  # -inf where a block has no finite vector
+    out = np.array(mean_px, dtype=np.float64, copy=True)
+    rows, cols = np.nonzero(spread > spread_px)
+    for start in range(0, rows.size, 2048):
+        r, c = rows[start : start + 2048], cols[start : start + 2048]
+        # (n, g * g, 2): the mixed blocks' vectors in row-major order, NaN = no flow
+        v = blocks[r, :, c, :].reshape(r.size, g * g, 2)
+        ok = cast(NDArray[np.bool_], np.isfinite(v).all(axis=2))
+        z = np.where(ok[..., None], v, np.float32(0.0))
+        dist = np.abs(z[:, :, None, 0] - z[:, None, :, 0]) + np.abs(
+            z[:, :, None, 1] - z[:, None, :, 1]
+        )
+        cost = np.einsum("cij,cj->ci", dist, ok.astype(np.float32))
+        best = np.where(ok, cost, np.inf).argmin(axis=1)
+        out[r, c] = z[np.arange(r.size), best]
+    return out
 
 
 def make_flow_source(spec: str, *, seed: int) -> FlowSource:

@@ -21,7 +21,11 @@ reproduces that chain around the ground truth (docs/sensors.md):
    tool does);
 6. the 0/255 mask is resized back bilinearly, cropped, and thresholded like the reader.
 
-All distances in the config are in FULL-resolution pixels.
+Boundary distances (dilation, boundary noise and its correlation length, blob radii) are in
+pixels of the network's INPUT (``inference_size_px``; full-resolution pixels when it is None):
+the network sees the same 640x480 padded image whether the camera gives 1280x720 or 640x360, so
+its boundary errors are a property of that image, and relative to the object they do not change
+with the camera resolution. ``min_visible_px`` is in full-resolution pixels.
 """
 
 from __future__ import annotations
@@ -45,27 +49,30 @@ __all__ = ["SegmenterConfig", "simulate_mask", "simulate_mask_uint8", "mask_iou"
 class SegmenterConfig:
     """Artefacts of the Mask R-CNN-like segmenter (TOML-loadable; see the module doc).
 
-    Defaults give a mean IoU of about 0.9 with the visible mask on Fast-YCB-sized objects at
-    1280x720 (docs/sensors.md): an assumption of a well fine-tuned network, not a calibration
-    (the reference masks are not available here).
+    Defaults give a mean IoU of 0.90-0.95 with the visible mask on Fast-YCB-sized objects, the
+    same at 1280x720 and 640x360 (docs/sensors.md): an assumption of a well fine-tuned network,
+    not a calibration (the reference masks are not available here). Boundary distances are in
+    pixels of the network's input image (module doc).
     """
 
     miss_probability: float = 0.03
     """Probability of no mask on a frame."""
     min_visible_px: int = 100
     """Fewer visible pixels than this (full resolution) is always a miss."""
-    dilation_sigma_px: float = 1.0
-    """Std of the per-frame global dilation (> 0) / erosion (< 0) of the boundary [px]."""
+    dilation_sigma_px: float = 0.5
+    """Std of the per-frame global dilation (> 0) / erosion (< 0) of the boundary [network
+    input px]."""
     dilation_bias_px: float = 0.0
-    """Mean of that dilation [px]."""
-    boundary_noise_px: float = 2.0
-    """Std of the smooth random boundary displacement [px]."""
-    boundary_noise_scale_px: float = 16.0
-    """Correlation length (Gaussian std) of that displacement along the boundary [px]."""
+    """Mean of that dilation [network input px]."""
+    boundary_noise_px: float = 1.0
+    """Std of the smooth random boundary displacement [network input px]."""
+    boundary_noise_scale_px: float = 8.0
+    """Correlation length (Gaussian std) of that displacement along the boundary [network input
+    px]."""
     spurious_blob_probability: float = 0.02
     """Probability per frame of one spurious blob somewhere in the image."""
-    spurious_blob_radius_px: tuple[float, float] = (10.0, 40.0)
-    """Range of the blob's semi-axes [px]."""
+    spurious_blob_radius_px: tuple[float, float] = (5.0, 20.0)
+    """Range of the blob's semi-axes [network input px]."""
     inference_size_px: tuple[int, int] | None = (640, 480)
     """(width, height) at which the network runs; None = full resolution (no resize)."""
     mask_head_px: int = 28
@@ -191,7 +198,7 @@ def simulate_mask_uint8(
     else:
         wi, hi = c.inference_size_px
         hp, wp, top, left = _padding(h, w, wi, hi)
-    scale = wi / wp
+    scale = wi / wp  # full-resolution px -> network input px
 
     # Draws, in a fixed order (a miss ends the frame: each frame has its own generator).
     p_miss = c.miss_probability + c.occlusion_miss_gain * occluded
@@ -199,10 +206,10 @@ def simulate_mask_uint8(
         return None
     noise_gain = 1.0 + c.occlusion_boundary_gain * occluded
     offset_px = c.dilation_bias_px + noise_gain * c.dilation_sigma_px * rng.standard_normal()
-    field = _smooth_field(rng, (hi, wi), c.boundary_noise_scale_px * scale)
+    field = _smooth_field(rng, (hi, wi), c.boundary_noise_scale_px)
     blob = rng.random() < c.spurious_blob_probability
     blob_centre = rng.uniform([left, top], [left + w, top + h]) * scale
-    blob_axes = rng.uniform(*c.spurious_blob_radius_px, size=2) * scale
+    blob_axes = rng.uniform(*c.spurious_blob_radius_px, size=2)
     blob_angle = rng.uniform(0.0, 180.0)
 
     if c.inference_size_px is None:
@@ -214,8 +221,8 @@ def simulate_mask_uint8(
     if not low.any():
         return None  # too small for the network at its resolution
     sdf = _signed_distance(low)
-    noise_px = noise_gain * c.boundary_noise_px * scale
-    noisy = sdf + np.float32(offset_px * scale) + np.float32(noise_px) * field
+    noise_px = noise_gain * c.boundary_noise_px
+    noisy = sdf + np.float32(offset_px) + np.float32(noise_px) * field
     low = noisy > 0
     if c.mask_head_px > 0:
         low = _mask_head(low, c.mask_head_px)

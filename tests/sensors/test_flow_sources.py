@@ -25,6 +25,7 @@ from roft_sim.sensors.flow_sources import (
     flow_px_from_s10_5,
     frame_rng,
     make_flow_source,
+    one_motion_per_block,
     s10_5_from_flow_px,
 )
 
@@ -228,13 +229,40 @@ def test_nvof_like_quantisation_and_block_bounds(precision_px):
     ok = f_nv.valid
     assert ok is not None and 0 < (~ok).sum() < ok.size
     np.testing.assert_array_equal(~ok, np.isnan(block_mean).all(-1))  # no valid pixel -> invalid
-    assert np.abs(f_nv.flow_px[ok] - block_mean[ok]).max() <= half_step + 1e-6
+    one_motion = ok & (spread.max(-1) <= precision_px)  # these get the block mean
+    assert one_motion.sum() > ok.sum() // 2
+    assert np.abs(f_nv.flow_px[one_motion] - block_mean[one_motion]).max() <= half_step + 1e-6
     # Per pixel: |nvof - inner| <= half a step + the inner flow's spread within the block.
     per_pixel = np.abs(f_nv.dense(*CAM.shape) - dense_in)
     bound = np.repeat(np.repeat(spread, 4, 0), 4, 1) + half_step + 1e-6
     finite = np.isfinite(per_pixel).all(-1)
     assert (per_pixel[finite] <= bound[finite]).all()
     assert NvofLikeFlowSource(StoredFlowSource("exact")).flow(seq, 0, 2) is None
+
+
+def test_nvof_like_boundary_block_gets_one_of_its_motions_not_their_average():
+    """NVOF matches blocks (one displacement per 4x4 block, with a matching cost), so a block on
+    a motion boundary gets the motion of most of its pixels; the block mean gave a vector that
+    belongs to neither (here (6, -2.25) px for an object moving (8, -3) px over a static
+    background)."""
+
+    class Boundary:
+        name = "boundary"
+
+        def flow(self, sequence, from_k, to_k):
+            h, w = sequence.intrinsics.shape
+            f = np.zeros((h, w, 2), np.float32)
+            f[:, : w // 2 + 3, 0] = 8.0  # object (left) moving; 3 of 4 columns of a block
+            f[:, : w // 2 + 3, 1] = -3.0
+            return FlowField(flow_px=f, from_k=from_k, to_k=to_k)
+
+    seq = planar_sequence(3)
+    h, w = CAM.shape
+    f = NvofLikeFlowSource(Boundary()).flow(seq, 0, 1)  # type: ignore[arg-type]
+    col = (w // 2) // 4  # the block column holding the boundary: 3 object + 1 static column
+    np.testing.assert_array_equal(f.flow_px[:, col - 1], np.tile([8.0, -3.0], (h // 4, 1)))
+    np.testing.assert_array_equal(f.flow_px[:, col + 1], 0.0)
+    np.testing.assert_array_equal(f.flow_px[:, col], np.tile([8.0, -3.0], (h // 4, 1)))
 
 
 def test_nvof_like_precision_must_be_whole_s10_5_steps():
@@ -363,3 +391,34 @@ def test_block_mean_flow_is_bit_identical_to_the_reduction(shape, holes):
         np.testing.assert_array_equal(mean, want_mean)
         if holes:
             assert not valid[:2, :2].any() and (mean[:2, :2] == 0).all()
+
+
+@pytest.mark.parametrize("shape", [(32, 48), (30, 45)])
+def test_one_motion_per_block_matches_a_block_by_block_oracle(shape):
+    """Against a plain loop over blocks: the mean where the finite vectors agree within the
+    spread, else the L1 medoid (first in row-major order on ties); NaN holes and partial
+    border blocks included."""
+    rng = np.random.default_rng(11)
+    h, w = shape
+    flow = np.zeros((h, w, 2), dtype=np.float32)
+    flow[..., 0] = np.where(np.arange(w)[None, :] < w // 2 + 1, 2.0, -3.0)  # a motion boundary
+    flow += rng.normal(scale=0.05, size=flow.shape).astype(np.float32)
+    flow[rng.random((h, w)) < 0.1] = np.nan
+    g, spread = 4, 0.25
+    mean, valid = block_mean_flow(flow, g)
+    got = one_motion_per_block(flow, mean, g, spread)
+    for bi in range(mean.shape[0]):
+        for bj in range(mean.shape[1]):
+            v = flow[bi * g : (bi + 1) * g, bj * g : (bj + 1) * g].reshape(-1, 2).astype(np.float64)
+            v = v[np.isfinite(v).all(axis=1)]
+            if v.size == 0:
+                np.testing.assert_array_equal(got[bi, bj], 0.0)
+                continue
+            if (v.max(axis=0) - v.min(axis=0)).max() <= spread:
+                np.testing.assert_array_equal(got[bi, bj], mean[bi, bj])
+            else:
+                cost = np.abs(v[:, None, :] - v[None, :, :]).sum(axis=(1, 2))
+                np.testing.assert_allclose(got[bi, bj], v[np.argmin(cost)], atol=1e-6)
+    assert (np.abs(got[..., 0] - 2.0) < 0.3).sum() + (np.abs(got[..., 0] + 3.0) < 0.3).sum() == int(
+        valid.sum()
+    )

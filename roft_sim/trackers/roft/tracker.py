@@ -43,11 +43,6 @@ from roft_sim.records import (
 )
 from roft_sim.trackers.base import TrackerContext
 from roft_sim.trackers.roft.config import RoftConfig
-from roft_sim.trackers.roft.innovation_gate import (
-    InnovationSpread,
-    adaptive_gate_test,
-    initial_spread,
-    squared_innovations,
 from roft_sim.trackers.roft.covariance_scale import (
     BlockScales,
     normalised_innovation_squared,
@@ -56,6 +51,12 @@ from roft_sim.trackers.roft.covariance_scale import (
     scaled_estimate_covariance,
     twist_difference,
     twist_noise,
+)
+from roft_sim.trackers.roft.innovation_gate import (
+    InnovationSpread,
+    adaptive_gate_test,
+    initial_spread,
+    squared_innovations,
 )
 from roft_sim.trackers.roft.mask_sync import (
     MaskSynchroniser,
