@@ -443,11 +443,11 @@ class PoseSyncConfig:
 @dataclass(frozen=True, slots=True, kw_only=True)
 class CovarianceScaleConfig:
     """Calibration of the REPORTED covariance (``Estimate.covariance``) by online variance-scale
-    estimation (roft_sim/trackers/roft/covariance_scale.py; not in the reference). The pose
-    block (t, r) and the velocity block (v, w) are each multiplied by the forgetting-factor mean
-    of the normalised innovation squared of their own measurements per dimension. The filter's
-    means and its internal covariance are untouched (Kalman gains are invariant to a common
-    scale of P, Q and R), so the estimates are the same with it on or off."""
+    estimation (roft_sim/trackers/roft/covariance_scale.py; not in the reference). The velocity
+    blocks (v, w) are multiplied by a forgetting-factor mean of the change of the twist
+    measurement between frames, normalised by the two measurements' noise (floored at 1); the
+    pose block (t, r) is calibrated as ``pose_block`` says. The filter's means and its internal
+    covariance are untouched, so the estimates are the same with it on or off."""
 
     enable: bool = True
     """Scale the reported covariance; False reports the UKF's covariance as it is (the

@@ -14,14 +14,23 @@ starting from ``s = 1`` with the weight ``m0`` of one measurement) is an unbiase
 ``s`` that follows slow changes of the input quality, and ``s_hat * P`` is the covariance the
 filter would report with a correctly scaled noise model.
 
-ROFT's state has two blocks that are measured by different sensors, each with its own
-mis-scaling: the pose (t, r), corrected by the detector's poses, and the velocity (v, w),
-corrected by the flow-based twist. Each block gets its own factor, from the NIS of its own
-measurements (the pose rows of a pose correction; the twist rows of a velocity correction), and
-the reported covariance is ``D P D`` with ``D = diag(sqrt(s_pose) I6, sqrt(s_velocity) I6)``
-(a congruence, so it stays symmetric positive semi-definite; the cross-covariance between the
-blocks is scaled by ``sqrt(s_pose s_velocity)``). With one factor for both blocks this is
-exactly the common rescaling above; with two it is its block-wise approximation.
+ROFT's state has blocks measured by different sensors, each with its own mis-specification:
+the pose (t, r), corrected by the detector's poses, and the velocity (v, w), corrected by the
+flow-based twist. What is used, per block (each factor a :class:`ScaleEstimate`):
+
+- velocity (v, w): the NIS of the twist itself does not work (the UKF's large process noise
+  makes every twist look consistent), so the factor comes from the change of the twist
+  measurement between consecutive frames normalised by the two measurements' noise
+  (:func:`twist_difference`), floored at 1 (it cannot see errors that persist from frame to
+  frame, so it may only inflate);
+- pose (t, r), ``pose_block = "excess"`` (default): the poses' true noise is estimated by
+  covariance matching (the NIS of the fused poses), the filter's own correction is replayed in
+  Joseph form with that noise (:func:`pose_excess_after`), and the covariance it misses is
+  added; ``pose_block = "scale"`` multiplies the block by the pose NIS factor instead.
+
+The reported covariance is ``D C D + E`` (:func:`scaled_estimate_covariance`: ``D`` the
+square roots of the factors per 3-D block, ``E`` the pose excess): a congruence plus a PSD
+term, so it stays symmetric positive semi-definite.
 
 The innovations are those of the linearised measurement models at the predicted belief (the
 UKF's own statistics to first order): position ``p``; orientation ``2 log(q_meas q^*)`` (left
@@ -37,6 +46,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from roft_sim.geometry.so3 import quat_conjugate, quat_multiply, rotvec_from_quat, skew
 from roft_sim.trackers.roft.config import CovarianceScaleConfig, PoseUKFConfig
 from roft_sim.trackers.roft.pose_ukf import PoseBelief
 
@@ -116,22 +126,9 @@ def normalised_innovation_squared(nu: F64, S: F64) -> float:
         return float("nan")
 
 
-def _skew(a: F64) -> F64:
-    return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
-
-
 def _rotvec_between(q_a: F64, q_b: F64) -> F64:
     """``2 log(q_a ⊗ q_b^*)`` [rad] (3,): the left rotation taking q_b to q_a."""
-    aw, av = q_a[0], q_a[1:]
-    bw, bv = q_b[0], -q_b[1:]
-    w = aw * bw - av @ bv
-    v = aw * bv + bw * av + np.cross(av, bv)
-    if w < 0.0:
-        w, v = -w, -v
-    s = float(np.linalg.norm(v))
-    if s < 1e-12:
-        return np.asarray(2.0 * v, dtype=np.float64)
-    return np.asarray(2.0 * np.arctan2(s, w) / s * v, dtype=np.float64)
+    return rotvec_from_quat(quat_multiply(q_a, quat_conjugate(q_b)))
 
 
 def twist_innovation(
@@ -143,8 +140,8 @@ def twist_innovation(
     predicted = np.concatenate([v - np.cross(w, p), w])
     H = np.zeros((6, 12))
     H[0:3, 0:3] = np.eye(3)
-    H[0:3, 3:6] = _skew(p)
-    H[0:3, 6:9] = -_skew(w)
+    H[0:3, 3:6] = skew(p)
+    H[0:3, 6:9] = -skew(w)
     H[3:6, 3:6] = np.eye(3)
     R = np.diag(np.concatenate([config.meas_cov_v, config.meas_cov_w]))
     if twist_cov is not None:
