@@ -96,7 +96,21 @@ def _field_path(where: str, key: str | int) -> str:
     return f"{where}.{key}"
 
 
-def _build_dataclass(cls: type, data: Any, where: str) -> Any:
+def _default_value(f: dataclasses.Field[Any]) -> Any:
+    """A field's default value (calling its factory), or MISSING."""
+    if f.default is not dataclasses.MISSING:
+        return f.default
+    if f.default_factory is not dataclasses.MISSING:
+        return f.default_factory()
+    return dataclasses.MISSING
+
+
+def _build_dataclass(cls: type, data: Any, where: str, base: Any = None) -> Any:
+    """``cls`` from the table ``data``. Keys absent from ``data`` keep ``base``'s values when
+    ``base`` (an instance of ``cls``: the enclosing dataclass's default for this field) is
+    given, else ``cls``'s own defaults; so a partial nested table overrides single keys of
+    what the enclosing class would otherwise hold (e.g. ``[gate] probability = 0.99`` keeps
+    ROFT's default gate switched on)."""
     if not isinstance(data, Mapping):
         raise ConfigError(
             f"{where}: expected a table of {cls.__name__} settings, got {type(data).__name__} "
@@ -119,7 +133,20 @@ def _build_dataclass(cls: type, data: Any, where: str) -> Any:
             if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING:
                 raise ConfigError(f"{where}: missing required key {name!r} for {cls.__name__}")
             continue
-        kwargs[name] = _convert(hints[name], data[name], _field_path(where, name))
+        tp, path = hints[name], _field_path(where, name)
+        if (
+            dataclasses.is_dataclass(tp)
+            and isinstance(tp, type)
+            and isinstance(data[name], Mapping)
+        ):
+            inner = getattr(base, name) if base is not None else _default_value(f)
+            inner = inner if isinstance(inner, tp) else None
+            kwargs[name] = _build_dataclass(tp, data[name], path, inner)
+        else:
+            kwargs[name] = _convert(tp, data[name], path)
+    if base is not None:
+        kept = {n: getattr(base, n) for n in fields if n not in data}
+        kwargs = {**kept, **kwargs}
     try:
         return cls(**kwargs)
     except ConfigError as e:

@@ -117,3 +117,45 @@ def test_an_optional_value_of_the_wrong_shape_says_what_was_expected():
     "matches none of tuple | NoneType"."""
     with pytest.raises(ConfigError, match=r"config\.window_s: expected 2 values, got 1"):
         dataclass_from_mapping(WithOptionalTuple, {"window_s": [1.0]})
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class _Gate:
+    enable: bool = False
+    probability: float = 0.999
+    prior_m: float = 0.05
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class _Tracker:
+    gate: _Gate = field(default_factory=lambda: _Gate(enable=True, prior_m=0.1))
+    name: str = "t"
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class _Outer:
+    tracker: _Tracker = field(default_factory=lambda: _Tracker(gate=_Gate(prior_m=0.2)))
+
+
+def test_a_partial_nested_table_overrides_single_keys_of_the_enclosing_default():
+    """``[gate] probability = 0.99`` keeps what the enclosing class's default gate holds
+    (enable = true), not the nested class's own defaults; at any depth."""
+    built = dataclass_from_mapping(_Tracker, {"gate": {"probability": 0.99}})
+    assert built.gate == _Gate(enable=True, probability=0.99, prior_m=0.1)
+    outer = dataclass_from_mapping(_Outer, {"tracker": {"gate": {"enable": True}}})
+    assert outer.tracker.gate == _Gate(enable=True, probability=0.999, prior_m=0.2)
+    assert dataclass_from_mapping(_Tracker, {}).gate == _Tracker().gate
+
+
+def test_a_partial_table_of_roft_keeps_the_default_gate_and_of_the_reference_its_values():
+    from roft_sim.trackers import get_tracker_spec, load_tracker_config
+    from roft_sim.trackers.roft import RoftConfig
+    from roft_sim.trackers.roft.reference import reference_config
+
+    roft = load_tracker_config(get_tracker_spec("roft"), {"gate": {"probability": 0.99}})
+    assert roft.gate.enable and roft.gate.adaptive and roft.gate.probability == 0.99
+    assert roft.mask == RoftConfig().mask
+    ref = load_tracker_config(get_tracker_spec("roft-reference"), {"mask": {"rounding": "nearest"}})
+    expected = reference_config().mask
+    assert ref.mask.cleanup == expected.cleanup and ref.mask.subpixel == expected.subpixel
+    assert ref.mask.rounding == "nearest"

@@ -214,3 +214,31 @@ def test_adaptive_gate_stays_open_until_a_pose_confirms_the_track(small_seq):
     _, closed_rad = transform_distance(est[23].T_cam_obj[None], gt[23][None])
     # a 180-degree innovation is corrected over two or three poses (the UKF is degenerate at pi)
     assert np.degrees(open_rad[0]) < 45.0 and np.degrees(closed_rad[0]) > 150.0
+
+
+def test_an_unconfirmed_track_is_reinitialised_by_a_disagreeing_pose(small_seq):
+    """A flipped first detection: with ``reinitialise_unconfirmed`` (default) the next correct
+    pose, which fails the test against the unconfirmed track, replaces its pose and the track
+    is right from that pose's arrival on; fused instead (switch off), the 180-degree innovation
+    is degenerate for the UKF and the track stays far off at that frame."""
+    seq = small_seq
+    gt = seq.gt.T_cam_obj
+    no_depth_test = dataclasses.replace(
+        TINY, outlier_rejection=dataclasses.replace(TINY.outlier_rejection, enable=False)
+    )
+    deliveries = [Delivery(0, 0, 0, _flipped(gt[0])), Delivery(6, 12, 1), Delivery(12, 18, 2)]
+    masks = paper_schedule(len(seq), first_id=1000)
+    errors = {}
+    for reinit in (True, False):
+        config = dataclasses.replace(
+            no_depth_test,
+            gate=dataclasses.replace(TINY.gate, reinitialise_unconfirmed=reinit),
+        )
+        est = run(
+            RoftTracker(config, make_context(seq)),
+            build_observations(seq, poses=deliveries, masks=masks),
+        )
+        assert est[12].accepted_pose_ids == (1,)
+        _, rad = transform_distance(est[12].T_cam_obj[None], gt[12][None])
+        errors[reinit] = float(np.degrees(rad[0]))
+    assert errors[True] < 15.0 and errors[False] > 60.0, errors

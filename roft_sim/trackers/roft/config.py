@@ -403,6 +403,14 @@ class PoseGateConfig:
     (the track is not confirmed: the pose that initialised the filter may be the outlier, e.g.
     a flipped first detection, and gating against it locks out the correct poses that
     follow)."""
+    reinitialise_unconfirmed: bool = True
+    """Adaptive gate, with ``open_until_confirmed``: a pose that fails the test while the track
+    is not confirmed RE-INITIALISES the pose (position and orientation at the pose, with the
+    initial covariance ``pose.cov_x0`` / ``cov_q0``; the velocities and their covariance are
+    kept) instead of being fused. Until a pose confirms it the track rests on one detection,
+    and fusing a detection that disagrees by up to 180 degrees is degenerate for the UKF (a
+    flipped first detection then took two to three more poses, 12-18 frames at 5 fps, to
+    correct); the re-initialised track is confirmed or replaced by the next pose."""
 
     def __post_init__(self) -> None:
         _check_positive("gate", "prior_translation_m", (self.prior_translation_m,))

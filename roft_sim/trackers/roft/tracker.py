@@ -172,6 +172,8 @@ class RoftTracker:
         self._known_ids: dict[int, int] = {}  # detection_id -> capture frame
         self._decisions: dict[int, bool] = {}  # detection_id -> accepted
         self._gated: set[int] = set()  # detection_ids rejected by the gate (vs depth test)
+        # detection_ids that re-initialised an unconfirmed track (gate.reinitialise_unconfirmed)
+        self._reinitialising: set[int] = set()
         self._init_pose: _Pose | None = None
         self._initial = initial
         self._no_predict_frame: int | None = None
@@ -375,6 +377,12 @@ class RoftTracker:
             confirmed = spread.passed > 0 or not gate.open_until_confirmed
             gated = not passes and confirmed and streak < gate.max_consecutive_rejections
             spread = after
+            self._reinitialising.discard(pose.detection_id)
+            if not passes and not confirmed and gate.reinitialise_unconfirmed:
+                self._decisions[pose.detection_id] = True
+                self._gated.discard(pose.detection_id)
+                self._reinitialising.add(pose.detection_id)
+                return self._reinitialised_at(without_pose, pose), 0, spread
         else:
             gated = gate_rejects(gate, predicted, pose.p_m, pose.q_wxyz, streak)
         if gated:
@@ -401,6 +409,17 @@ class RoftTracker:
         self._decisions[pose.detection_id] = not reject
         return (without_pose if reject else with_pose), 0, spread
 
+    def _reinitialised_at(self, belief: PoseBelief, pose: _Pose) -> PoseBelief:
+        """``belief`` with its pose replaced by ``pose`` and the pose block of its covariance
+        by the configured initial one (no cross-covariance with the velocities, which are
+        kept with their covariance): ``gate.reinitialise_unconfirmed``."""
+        fresh = self._ukf.initial_belief(pose.p_m, pose.q_wxyz)
+        P = np.zeros_like(belief.P)
+        P[0:6, 0:6] = belief.P[0:6, 0:6]
+        P[6:12, 6:12] = fresh.P[6:12, 6:12]
+        x = np.concatenate([belief.x[0:6], fresh.x[6:9]])
+        return PoseBelief(x=x, q=fresh.q, P=P)
+
     def _advance(self, j: int, prior: PoseBelief) -> PoseBelief:
         """Predict from j-1 to j and correct with everything known about frame j (also stores
         the gate's rejection streak after j, so that a replay from any frame restores it)."""
@@ -424,7 +443,12 @@ class RoftTracker:
                 belief, streak, spread = self._correct_with_pose(
                     belief, twist if i == 0 else None, pose, frame, i == 0, streak, spread
                 )
-                if self._decisions.get(pose.detection_id) and pose is not self._init_pose:
+                fused = self._decisions.get(pose.detection_id)
+                if (
+                    fused
+                    and pose is not self._init_pose
+                    and pose.detection_id not in self._reinitialising
+                ):
                     scales = self._with_pose_nis(scales, before, pose)
         self._gate_streaks[j] = streak
         self._gate_spreads[j] = spread
@@ -633,6 +657,7 @@ class RoftTracker:
                 self._known_ids.pop(pose.detection_id, None)
                 self._decisions.pop(pose.detection_id, None)
                 self._gated.discard(pose.detection_id)
+                self._reinitialising.discard(pose.detection_id)
 
     @property
     def pose_belief(self) -> PoseBelief | None:
