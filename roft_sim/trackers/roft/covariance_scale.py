@@ -46,7 +46,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from roft_sim.geometry.so3 import quat_conjugate, quat_multiply, rotvec_from_quat, skew
+from roft_sim.geometry.so3 import quat_conjugate, quat_multiply, rotvec_from_quat
 from roft_sim.trackers.roft.config import CovarianceScaleConfig, PoseUKFConfig
 from roft_sim.trackers.roft.pose_ukf import PoseBelief
 
@@ -57,7 +57,6 @@ __all__ = [
     "twist_difference",
     "BlockScales",
     "normalised_innovation_squared",
-    "twist_innovation",
     "pose_innovation",
     "scaled_estimate_covariance",
     "pose_excess_after",
@@ -129,25 +128,6 @@ def normalised_innovation_squared(nu: F64, S: F64) -> float:
 def _rotvec_between(q_a: F64, q_b: F64) -> F64:
     """``2 log(q_a ⊗ q_b^*)`` [rad] (3,): the left rotation taking q_b to q_a."""
     return rotvec_from_quat(quat_multiply(q_a, quat_conjugate(q_b)))
-
-
-def twist_innovation(
-    belief: PoseBelief, twist: F64, config: PoseUKFConfig, twist_cov: F64 | None
-) -> tuple[F64, F64]:
-    """Innovation (6,) and its covariance (6, 6) of a twist ``(v_o, w)`` at ``belief``, with the
-    UKF's twist noise ``diag(meas_cov_v, meas_cov_w)`` plus ``twist_cov`` (or not)."""
-    v, w, p = belief.x[0:3], belief.x[3:6], belief.x[6:9]
-    predicted = np.concatenate([v - np.cross(w, p), w])
-    H = np.zeros((6, 12))
-    H[0:3, 0:3] = np.eye(3)
-    H[0:3, 3:6] = skew(p)
-    H[0:3, 6:9] = -skew(w)
-    H[3:6, 3:6] = np.eye(3)
-    R = np.diag(np.concatenate([config.meas_cov_v, config.meas_cov_w]))
-    if twist_cov is not None:
-        R = R + np.asarray(twist_cov, dtype=np.float64)
-    S = H @ belief.P @ H.T + R
-    return np.asarray(twist, dtype=np.float64) - predicted, 0.5 * (S + S.T)
 
 
 def twist_difference(
