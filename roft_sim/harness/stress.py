@@ -342,20 +342,8 @@ class StressResult:
     """Skipped trackers and sequences, with the reason."""
     splits: dict[str, list[str]]
     """Sequence names per split."""
-    pooled: dict[tuple[str, str, str], dict[str, float]]
-    """``(split, tracker, preset) -> metrics`` pooled over sequences, flows and seeds."""
-    pooled_default: dict[tuple[str, str, str], dict[str, float]]
-    """``(split, tracker, preset) -> metrics`` pooled over sequences and seeds, on the default
-    inputs (:data:`DEFAULT_FLOW`) only."""
-    per_sequence: dict[tuple[str, str, str], dict[str, float]]
-    """``(sequence, tracker, preset) -> metrics`` pooled over flows and seeds."""
-    per_flow: dict[tuple[str, str, str], dict[str, float]]
-    """``(split, tracker, flow) -> metrics`` pooled over presets, sequences and seeds."""
-    verdicts: dict[str, Verdict]
-    """Per split, pooled over every flow source."""
-    default_verdicts: dict[str, Verdict]
-    """Per split, on the default inputs (:data:`DEFAULT_FLOW`) only (absent for a split
-    without such cells)."""
+    scores: StressScores
+    """The pooled metrics and the verdicts (:func:`score_stress`)."""
     presets: tuple[str, ...]
     """The fault presets, in order."""
     flows: tuple[str, ...]
@@ -586,12 +574,7 @@ def run_stress(
         trackers=tuple(trackers),
         notes=tuple(notes),
         splits=splits,
-        pooled=scores.pooled,
-        pooled_default=scores.pooled_default,
-        per_sequence=scores.per_sequence,
-        per_flow=scores.per_flow,
-        verdicts=scores.verdicts,
-        default_verdicts=scores.default_verdicts,
+        scores=scores,
         presets=tuple(faults),
         flows=tuple(flows),
     )
@@ -651,22 +634,25 @@ def format_stress_report(
         names = result.splits[split]
         out.append(f"## {split.upper()} split: {', '.join(names)}")
         out.append("")
-        rows = _rows(result.pooled, split, result.presets, result.trackers)
+        rows = _rows(result.scores.pooled, split, result.presets, result.trackers)
         title = f"### {split.upper()}: pooled over sequences, flows and seeds"
         out += _table(title, rows, "preset")
-        rows = _rows(result.pooled_default, split, result.presets, result.trackers)
+        rows = _rows(result.scores.pooled_default, split, result.presets, result.trackers)
         if rows:
             title = f"### {split.upper()}: default inputs ({DEFAULT_FLOW}), pooled over sequences"
             out += _table(title + " and seeds", rows, "preset")
-        rows = _rows(result.per_flow, split, result.flows, result.trackers)
+        rows = _rows(result.scores.per_flow, split, result.flows, result.trackers)
         out += _table(f"### {split.upper()}: per flow source (pooled over presets)", rows, "flow")
         if per_sequence:
             for name in names:
-                rows = _rows(result.per_sequence, name, result.presets, result.trackers)
+                rows = _rows(result.scores.per_sequence, name, result.presets, result.trackers)
                 out += _table(f"### {split.upper()} sequence {name}", rows, "preset")
     out.append("## Verdict")
     out.append("")
-    for verdicts in (result.default_verdicts, result.verdicts):  # the issue's criterion first
+    for verdicts in (
+        result.scores.default_verdicts,
+        result.scores.verdicts,
+    ):  # the issue's criterion first
         for split in ("tuning", "evaluation"):
             if split in verdicts:
                 out.append(verdicts[split].line(subject, baselines))

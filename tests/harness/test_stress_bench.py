@@ -154,12 +154,7 @@ def test_verdict_on_the_default_inputs_comes_first_and_ignores_other_flows(
         trackers=("roft", *baselines),
         notes=(),
         splits={"evaluation": ["bvh-002_06"]},
-        pooled=scores.pooled,
-        pooled_default=scores.pooled_default,
-        per_sequence=scores.per_sequence,
-        per_flow=scores.per_flow,
-        verdicts=scores.verdicts,
-        default_verdicts=scores.default_verdicts,
+        scores=scores,
         presets=("paper",),
         flows=(DEFAULT_FLOW, "gt+noise:1"),
     )
@@ -202,9 +197,9 @@ def test_small_benchmark_orders_roft_above_the_baselines(tmp_path: Path) -> None
     print(format_stress_report(result, subject="roft", baselines=list(config.baselines)))
     losses = []
     for preset in size.faults:
-        roft = result.pooled[("evaluation", "roft", preset)]["add_auc_pct"]
+        roft = result.scores.pooled[("evaluation", "roft", preset)]["add_auc_pct"]
         for base in config.baselines:
-            other = result.pooled[("evaluation", base, preset)]["add_auc_pct"]
+            other = result.scores.pooled[("evaluation", base, preset)]["add_auc_pct"]
             if not (np.isfinite(roft) and roft > other):
                 losses.append(f"{preset}: roft {roft:.1f} <= {base} {other:.1f}")
     assert not losses, "; ".join(losses)
