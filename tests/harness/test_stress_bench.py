@@ -171,22 +171,20 @@ def test_verdict_on_the_default_inputs_comes_first_and_ignores_other_flows(
 
 @pytest.mark.slow
 @pytest.mark.render
-@pytest.mark.xfail(
-    strict=False,
-    reason="issue 14 open: on these two short sequences every tracker scores 2.5-2.8 % ADD-AUC "
-    "under bursts (roft 2.5 vs detector-hold 2.8 and pose-only-ukf 2.5, after the tracker fixes "
-    "and with the adaptive pose gate; bursty-s104 has no valid estimate of any tracker in these "
-    "60 frames)",
-)
 def test_small_benchmark_orders_roft_above_the_baselines(tmp_path: Path) -> None:
     """Two synthetic EVALUATION sequences (continuous and bursty), three presets, the default
-    inputs: ROFT must beat holding the last detection and the pose-only UKF on ADD-AUC."""
+    inputs, 120 frames: ROFT must beat holding the last detection and the pose-only UKF on
+    ADD-AUC, e_t and e_a, pooled over the two sequences, under each preset.
+
+    120 frames as in the medium size: in the first 60 frames of ``bursty-s104`` the ``bursts``
+    preset leaves no tracker a valid estimate (every tracker scored 2.5-2.8 % ADD-AUC there), so
+    a shorter run compares start-up rules, not trackers."""
     config = load_stress_config(shipped_stress_config())
     config = dataclasses.replace(
         config, trackers=("roft", "detector-hold", "pose-only-ukf"), baselines=config.baselines
     )
     size = StressSize(
-        frames=60,
+        frames=120,
         resolution=(320, 180),
         seeds=(0,),
         sequences=("continuous-s103", "bursty-s104"),
@@ -197,9 +195,15 @@ def test_small_benchmark_orders_roft_above_the_baselines(tmp_path: Path) -> None
     print(format_stress_report(result, subject="roft", baselines=list(config.baselines)))
     losses = []
     for preset in size.faults:
-        roft = result.scores.pooled[("evaluation", "roft", preset)]["add_auc_pct"]
+        roft = result.scores.pooled[("evaluation", "roft", preset)]
         for base in config.baselines:
-            other = result.scores.pooled[("evaluation", base, preset)]["add_auc_pct"]
-            if not (np.isfinite(roft) and roft > other):
-                losses.append(f"{preset}: roft {roft:.1f} <= {base} {other:.1f}")
+            other = result.scores.pooled[("evaluation", base, preset)]
+            add_roft, add_other = roft["add_auc_pct"], other["add_auc_pct"]
+            if not add_roft > add_other:
+                losses.append(f"{preset}: ADD-AUC roft {add_roft:.1f} <= {base} {add_other:.1f}")
+            for key in ("rmse_t_cm", "rmse_a_deg"):
+                if not roft[key] < other[key]:
+                    losses.append(
+                        f"{preset}: {key} roft {roft[key]:.2f} >= {base} {other[key]:.2f}"
+                    )
     assert not losses, "; ".join(losses)
