@@ -69,6 +69,15 @@ class MaskSyncConfig:
     frame is their rasterisation); False re-rasterises the mask at every flow step, which
     rounds away motion smaller than half a pixel per frame. Needs ``cleanup`` ``none`` or
     ``close``."""
+    new_points: Literal["interior", "closing"] = "interior"
+    """With ``subpixel`` and ``cleanup = "close"``: which pixels the closing adds become new
+    tracked points. ``interior``: only those whose 3x3 neighbourhood lies wholly in the closed
+    mask (the holes splatting leaves where the object grows in the image), so the clean-up
+    never moves the boundary and the mask's area follows the tracked points. ``closing``: every
+    pixel the closing adds (the previous default): boundary concavities filled by one closing
+    become points and the next closing starts from them, so under flow noise the mask grew by
+    about a pixel ring per frame (1.6x the object after 12 frames of propagation on TUM room1,
+    2.8x after 48 without a new mask)."""
 
     def __post_init__(self) -> None:
         if self.subpixel and self.cleanup == "majority":

@@ -316,8 +316,9 @@ class TrackedPoints:
     Between flow steps the points keep their float positions (no re-rasterisation, so motion
     of a fraction of a pixel per frame accumulates instead of being rounded away); the pixel
     set is their nearest pixels, closed on 3x3 neighbourhoods when asked, and the pixels the
-    closing adds become new points at their centres (so a mask that grows in the image keeps
-    its density)."""
+    closing adds inside the mask become new points at their centres (so a mask that grows in
+    the image keeps its density, while the boundary stays where the points are:
+    ``MaskSyncConfig.new_points``)."""
 
     u_px: NDArray[np.float64]
     """(N,) columns of the points [px] (pixel centres at integer coordinates)."""
@@ -332,7 +333,13 @@ class TrackedPoints:
         return cls(pixels.u.astype(np.float64), pixels.v.astype(np.float64), pixels)
 
 
-def track_points(points: TrackedPoints, flow: FlowField, *, cleanup: str) -> TrackedPoints:
+def track_points(
+    points: TrackedPoints,
+    flow: FlowField,
+    *,
+    cleanup: str,
+    new_points: str = "interior",
+) -> TrackedPoints:
     """Moves sub-pixel points by one flow (looked up at the pixel each point lies in) and
     rasterises them to the nearest pixels, with ``close`` or no clean-up.
 
@@ -345,7 +352,14 @@ def track_points(points: TrackedPoints, flow: FlowField, *, cleanup: str) -> Tra
         points: the mask in the frame ``flow.from_k``.
         flow: one flow field.
         cleanup: ``none`` or ``close``.
+        new_points: which pixels the closing adds become tracked points: ``interior`` (those
+            whose 3x3 neighbourhood is wholly in the closed mask) or ``closing`` (all of them);
+            see ``MaskSyncConfig.new_points``.
     """
+    if new_points not in ("interior", "closing"):
+        raise ValueError(
+            f"track_points supports new_points 'interior' or 'closing', got {new_points!r}"
+        )
     if cleanup not in ("none", "close"):
         raise ValueError(f"track_points supports cleanup 'none' or 'close', got {cleanup!r}")
     shape = points.pixels.shape
@@ -366,6 +380,9 @@ def track_points(points: TrackedPoints, flow: FlowField, *, cleanup: str) -> Tra
         return TrackedPoints(u, v, PixelSet.from_index(lin, shape))
     closed = _splat(ui[first], vi[first], shape, "close")
     added = closed.index[~np.isin(closed.index, lin, assume_unique=True)]
+    if new_points == "interior" and added.size:
+        interior = erode_pixels(closed, 1).index
+        added = added[np.isin(added, interior, assume_unique=True)]
     if added.size:
         av = added // w
         u = np.concatenate([u, (added - av * w).astype(np.float64)])
@@ -473,7 +490,9 @@ class MaskSynchroniser:
                 if cfg.subpixel:
                     points = TrackedPoints.from_pixels(pixels)
                     for flow_j in chain:
-                        points = track_points(points, flow_j, cleanup=cfg.cleanup)
+                        points = track_points(
+                            points, flow_j, cleanup=cfg.cleanup, new_points=cfg.new_points
+                        )
                     self._points, pixels = points, points.pixels
                 else:
                     pixels = warp_pixels(pixels, chain, rounding=cfg.rounding, cleanup=cfg.cleanup)
@@ -481,7 +500,9 @@ class MaskSynchroniser:
         elif cfg.flow_aided and self._pixels is not None and k in self._flows:
             counts["warp_flows"] = 1
             if cfg.subpixel and self._points is not None:
-                self._points = track_points(self._points, self._flows[k], cleanup=cfg.cleanup)
+                self._points = track_points(
+                    self._points, self._flows[k], cleanup=cfg.cleanup, new_points=cfg.new_points
+                )
                 self._pixels = self._points.pixels
             else:
                 self._pixels = warp_pixels(
