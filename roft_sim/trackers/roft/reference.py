@@ -216,17 +216,6 @@ DEVIATIONS: tuple[Deviation, ...] = (
         _restore("velocity", "twist_covariance_to_ukf"),
     ),
     Deviation(
-        "fresh_mask_remeasure",
-        "when a delayed mask arrives, the flows since its capture are measured again on it and "
-        "the velocity KF and the pose UKF are replayed with the corrected twists",
-        _restore("velocity", "remeasure_on_fresh_mask"),
-    ),
-    Deviation(
-        "unmeasured_twist",
-        "no spatial twist is reported before the velocity KF has used any flow (frame 0)",
-        _restore("velocity", "report_unmeasured_twist"),
-    ),
-    Deviation(
         "interval_velocity",
         "the UKF integrates the pose with the new (interval-mean) velocity the flow measures",
         _restore("pose", "integrate_interval_velocity"),
@@ -243,6 +232,17 @@ DEVIATIONS: tuple[Deviation, ...] = (
         "blocks: twist-change factor; pose block: Joseph-form excess of the estimated pose "
         "noise); the estimates are unchanged",
         _restore("covariance_scale", "enable"),
+    ),
+    Deviation(
+        "fresh_mask_remeasure",
+        "when a delayed mask arrives, the flows since its capture are measured again on it and "
+        "the velocity KF and the pose UKF are replayed with the corrected twists",
+        _restore("velocity", "remeasure_on_fresh_mask"),
+    ),
+    Deviation(
+        "unmeasured_twist",
+        "no spatial twist is reported before the velocity KF has used any flow (frame 0)",
+        _restore("velocity", "report_unmeasured_twist"),
     ),
 )
 """The deviations in the order the attribution table adds them; applying all of them to
