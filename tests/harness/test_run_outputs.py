@@ -121,8 +121,17 @@ def test_velocity_estimate_gives_the_estimate_back_under_the_reference_conversio
 def test_velocity_estimate_is_the_spatial_twist_when_reported(roft_run):
     result, out = roft_run
     rows = read_velocity_estimate(out / "box_a" / "velocity_estimate.txt")
-    twists = np.array([e.spatial_twist for e in result.runs[0].estimates])
-    np.testing.assert_allclose(rows, twists, rtol=0, atol=0)
+    estimates = result.runs[0].estimates
+    # frame 0 has no flow, so ROFT claims no twist there; the file then holds the pose
+    # filter's velocity (v_o at the estimated position) or zeros, as the reference's 0
+    assert estimates[0].spatial_twist is None
+    e = estimates[0]
+    expected = np.zeros(6)
+    if e.valid:
+        expected = np.r_[v_o_from_v_obj(e.v_obj_mps, e.w_radps, e.T_cam_obj[:3, 3]), e.w_radps]
+    np.testing.assert_allclose(rows[0], expected, rtol=0, atol=1e-12)
+    twists = np.array([e.spatial_twist for e in estimates[1:]])
+    np.testing.assert_allclose(rows[1:], twists, rtol=0, atol=0)
 
 
 def test_estimates_npz_round_trips_every_field(roft_run):

@@ -197,7 +197,8 @@ def test_estimate_layout(tiny_seq):
     seq = tiny_seq
     unscaled = dataclasses.replace(TINY, covariance_scale=CovarianceScaleConfig(enable=False))
     tracker = RoftTracker(unscaled, make_context(seq))
-    est = run(tracker, build_observations(seq, poses=paper_schedule(len(seq))))
+    schedule = {"poses": paper_schedule(len(seq)), "masks": paper_schedule(len(seq), first_id=99)}
+    est = run(tracker, build_observations(seq, **schedule))
     e = est[-1]
     P = tracker.pose_belief.P
     idx = {name: i for i, name in enumerate(ESTIMATE_COVARIANCE_ORDER)}
@@ -207,7 +208,7 @@ def test_estimate_layout(tiny_seq):
     # the default calibration: the velocity blocks are scaled by the factors the diagnostics
     # report, a positive semi-definite excess is added to the pose block; the estimates are
     # the same
-    obs = build_observations(seq, poses=paper_schedule(len(seq)))
+    obs = build_observations(seq, **schedule)
     s = run(RoftTracker(TINY, make_context(seq)), obs)[-1]
     np.testing.assert_array_equal(s.T_cam_obj, e.T_cam_obj)
     np.testing.assert_array_equal(s.v_obj_mps, e.v_obj_mps)
@@ -218,7 +219,9 @@ def test_estimate_layout(tiny_seq):
     np.testing.assert_array_equal(e.spatial_twist, tracker.velocity_belief[0])
     np.testing.assert_array_equal(e.v_obj_mps, tracker.pose_belief.x[0:3])
     assert not est[0].valid or est[0].k == 0
-    assert est[0].spatial_twist is not None
+    # frame 0 has no flow: no twist is claimed (velocity.report_unmeasured_twist), then one
+    assert est[0].spatial_twist is None
+    assert all(x.spatial_twist is not None for x in est[1:])
 
 
 # ----------------------------------------------------------------- outlier rejection
@@ -566,3 +569,59 @@ def test_stride_and_flow_noise_scale_with_the_resolution():
     assert cfg.flow_variance_px2(640) == (0.25, 0.25)
     ref = VelocityKFConfig(noise_reference_width_px=None)
     assert ref.stride(320) == 35 and ref.flow_variance_px2(320) == (1.0, 1.0)
+
+
+# ----------------------------------------------------------------- fresh-mask re-measurement
+@pytest.mark.parametrize("remeasure", [True, False])
+def test_fresh_mask_remeasures_the_buffered_twists(small_seq, remeasure):
+    """Masks captured every 6 frames and delivered 6 late (poses on time): with
+    ``velocity.remeasure_on_fresh_mask`` the velocity KF, the twists stored for the pose
+    replays and the pose at every arrival frame equal (1e-9) those of a run in which each mask
+    arrived at its capture frame (the flows since the capture are read on the fresh mask);
+    without it the twists measured on the older mask stay."""
+    seq = small_seq
+    n = len(seq)
+    captures = range(0, n, 6)
+    poses = [Delivery(c, c, i) for i, c in enumerate(captures)]
+    masks = {
+        "delayed": paper_schedule(n, first_id=1000),
+        "prompt": [Delivery(c, c, 1000 + i) for i, c in enumerate(captures)],
+    }
+    cfg = RoftConfig(velocity=VelocityKFConfig(remeasure_on_fresh_mask=remeasure))
+    out = {}
+    for name, schedule in masks.items():
+        tracker = RoftTracker(cfg, make_context(seq))
+        tracker.reset(None)
+        rows = []
+        for obs in build_observations(seq, poses=poses, masks=schedule):
+            e = tracker.step(obs)
+            rows.append((e, tracker.velocity_belief[0], e.diagnostics["remeasured_frames"]))
+        out[name] = rows
+    arrivals = [c + 6 for c in captures if c > 0 and c + 6 < n]
+    assert arrivals
+    for k in arrivals:
+        (e_d, x_d, m_d), (e_p, x_p, _) = out["delayed"][k], out["prompt"][k]
+        if remeasure:
+            assert m_d == 5  # frames c+1 .. k-1
+            np.testing.assert_allclose(x_d, x_p, rtol=0, atol=1e-9)
+            _assert_estimates_equal(e_d, e_p)
+        else:
+            assert m_d == 0
+            assert np.abs(x_d - x_p).max() > 1e-6
+            assert np.abs(e_d.T_cam_obj - e_p.T_cam_obj).max() > 1e-9
+
+
+def test_no_twist_is_claimed_before_the_first_flow_update(small_seq):
+    """Frame 0 has no flow: the default reports no spatial twist there (the metric then leaves
+    the frame out of the velocity RMSE); ``report_unmeasured_twist`` gives the reference's
+    initial zero."""
+    seq = small_seq
+    obs = build_observations(seq, poses=paper_schedule(len(seq)), masks=paper_schedule(len(seq)))
+    for report in (False, True):
+        cfg = RoftConfig(velocity=VelocityKFConfig(report_unmeasured_twist=report))
+        est = run(RoftTracker(cfg, make_context(seq)), obs[:3])
+        if report:
+            np.testing.assert_array_equal(est[0].spatial_twist, np.zeros(6))
+        else:
+            assert est[0].spatial_twist is None
+        assert est[1].spatial_twist is not None and np.abs(est[1].spatial_twist).max() > 0

@@ -7,6 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from roft_sim.errors import ConfigError
 from roft_sim.geometry import CameraIntrinsics, project_points, v_o_from_v_obj
 from roft_sim.geometry.rigid_flow import rigid_flow
 from roft_sim.geometry.se3 import transform_from_rt
@@ -267,3 +268,48 @@ def test_midpoint_timing_reports_the_twist_at_the_frame():
         out[mid] = kf.x_frame
     np.testing.assert_allclose(out[True], twist(5 * dt), atol=1e-6)
     np.testing.assert_allclose(out[False], twist(4.5 * dt), atol=1e-6)
+
+
+@pytest.mark.parametrize("noise_px", [0.0, 0.1])
+def test_constant_acceleration_model_reports_the_twist_at_the_frame(noise_px):
+    """A twist with a constant rate, flow measured with (or without) pixel noise: with
+    ``motion_model = "constant_acceleration"`` the twist reported at k (``x_frame``) is the
+    truth at k within a quarter of the half-frame lag ``|rate| dt / 2`` after 15 frames, and
+    the interval mean handed to the UKF (``x``) is the truth at k - 1/2; the constant model
+    reports the interval mean as the twist at k (the lag)."""
+    rng = np.random.default_rng(7)
+    n, dt = 400, 1 / 30
+    u = rng.integers(0, CAM.width_px, n)
+    v = rng.integers(0, CAM.height_px, n)
+    J = flow_jacobian(CAM, u, v, rng.uniform(0.4, 1.5, n), dt)
+    rate = np.r_[1.5, -1.0, 0.8, 12.0, -8.0, 6.0]  # [m/s^2, rad/s^2]
+    lag = np.abs(rate) * dt / 2  # (6,) the interval mean's lag behind the twist at k
+
+    def twist(t):
+        return np.r_[0.1, 0.0, -0.1, 0.5, 1.0, -0.5] + rate * t
+
+    errors = {}
+    for model in ("constant", "constant_acceleration"):
+        kf = VelocityKF(VelocityKFConfig(motion_model=model), CAM.width_px)
+        err_at_k = []
+        for k in range(1, 31):
+            y = J @ twist((k - 0.5) * dt) + rng.normal(0.0, noise_px, (n, 2))
+            assert kf.step(FlowMeasurement(y_px=y, J=J, u_px=u, v_px=v), t_s=k * dt, dt_s=dt)
+            if k >= 15:
+                err_at_k.append(np.abs(kf.x_frame - twist(k * dt)))
+                if model == "constant_acceleration":
+                    assert (np.abs(kf.x - twist((k - 0.5) * dt)) < 0.25 * lag).all()
+        errors[model] = np.max(err_at_k, axis=0)
+    assert (errors["constant_acceleration"] < 0.25 * lag).all(), errors
+    assert (errors["constant"] > 0.7 * lag).all(), errors
+
+
+def test_constant_acceleration_model_needs_the_frame_times_and_excludes_midpoint_timing():
+    kf = VelocityKF(VelocityKFConfig(motion_model="constant_acceleration"))
+    J = flow_jacobian(CAM, [100, 200, 300], [100, 200, 150], [1.0, 1.0, 1.0], 1 / 30)
+    zeros = np.zeros(3, np.int64)
+    meas = FlowMeasurement(y_px=np.zeros((3, 2)), J=J, u_px=zeros, v_px=zeros)
+    with pytest.raises(ValueError, match="needs the frame time"):
+        kf.step(meas)
+    with pytest.raises(ConfigError, match="midpoint_timing"):
+        VelocityKFConfig(motion_model="constant_acceleration", midpoint_timing=True)

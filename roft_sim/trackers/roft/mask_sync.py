@@ -433,6 +433,10 @@ class MaskStep:
     counts: dict[str, int] = field(default_factory=dict)
     """Diagnostics: masks used, ignored (older than the one in use), dropped (too old for the
     flow buffer, empty, wrong size, captured in the future), flows used in the warp."""
+    history: tuple[tuple[int, PixelSet], ...] = ()
+    """When a delayed mask arrived and was warped point by point (``subpixel``): ``(frame,
+    mask)`` of that mask at its capture frame and after each buffered flow, in frame order
+    (the last is ``pixels``); empty otherwise."""
 
 
 class MaskSynchroniser:
@@ -464,6 +468,7 @@ class MaskSynchroniser:
         if cfg.flow_aided and flow is not None and flow.to_k == k and flow.from_k < k:
             self._flows[k] = flow
         best: MaskDetection | None = None
+        history: tuple[tuple[int, PixelSet], ...] = ()
         for det in masks:
             c = det.capture_k
             usable_shape = det.mask.shape == self._shape
@@ -489,11 +494,14 @@ class MaskSynchroniser:
                 counts["warp_flows"] = len(chain)
                 if cfg.subpixel:
                     points = TrackedPoints.from_pixels(pixels)
+                    steps = [(best.capture_k, pixels)]
                     for flow_j in chain:
                         points = track_points(
                             points, flow_j, cleanup=cfg.cleanup, new_points=cfg.new_points
                         )
+                        steps.append((flow_j.to_k, points.pixels))
                     self._points, pixels = points, points.pixels
+                    history = tuple(steps)
                 else:
                     pixels = warp_pixels(pixels, chain, rounding=cfg.rounding, cleanup=cfg.cleanup)
             self._pixels, self._capture_k = pixels, best.capture_k
@@ -513,4 +521,4 @@ class MaskSynchroniser:
                 )
         for j in [j for j in self._flows if j <= k - self._horizon]:
             del self._flows[j]
-        return MaskStep(self._pixels, self._capture_k, counts)
+        return MaskStep(self._pixels, self._capture_k, counts, history)

@@ -66,6 +66,8 @@ def _reference_velocity() -> VelocityKFConfig:
         skip_stale_velocity=False,  # the KF mean is fed to the UKF every frame (report 1.3)
         twist_covariance_to_ukf=False,  # fixed R_v, R_w in the UKF (report 4.4)
         midpoint_timing=False,  # the flow k-1 -> k is the velocity at k (report 3.2)
+        remeasure_on_fresh_mask=False,  # a measured twist is never revised (report 1.3)
+        report_unmeasured_twist=True,  # frame 0: the zero twist is written (report 1.3, 3.4)
     )
 
 
@@ -230,6 +232,17 @@ DEVIATIONS: tuple[Deviation, ...] = (
         "blocks: twist-change factor; pose block: Joseph-form excess of the estimated pose "
         "noise); the estimates are unchanged",
         _restore("covariance_scale", "enable"),
+    ),
+    Deviation(
+        "fresh_mask_remeasure",
+        "when a delayed mask arrives, the flows since its capture are measured again on it and "
+        "the velocity KF and the pose UKF are replayed with the corrected twists",
+        _restore("velocity", "remeasure_on_fresh_mask"),
+    ),
+    Deviation(
+        "unmeasured_twist",
+        "no spatial twist is reported before the velocity KF has used any flow (frame 0)",
+        _restore("velocity", "report_unmeasured_twist"),
     ),
 )
 """The deviations in the order the attribution table adds them; applying all of them to

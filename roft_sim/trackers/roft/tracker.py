@@ -25,6 +25,7 @@ the horizon), so the result does not depend on the order of arrival.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 from collections import Counter
 from dataclasses import dataclass
@@ -37,6 +38,7 @@ from roft_sim.geometry.se3 import transform_from_pq
 from roft_sim.geometry.so3 import quat_from_matrix
 from roft_sim.records import (
     Estimate,
+    FlowField,
     MaskDetection,
     Observation,
     PoseDetection,
@@ -59,6 +61,7 @@ from roft_sim.trackers.roft.innovation_gate import (
     squared_innovations,
 )
 from roft_sim.trackers.roft.mask_sync import (
+    MaskStep,
     MaskSynchroniser,
     PixelSet,
     erode_pixels,
@@ -103,6 +106,19 @@ class _Pose:
     capture_k: int
     p_m: F64
     q_wxyz: F64
+
+
+@dataclass(frozen=True, slots=True)
+class _VelocityInput:
+    """What the velocity KF read at one delivered camera frame (kept for the re-measurement
+    of ``velocity.remeasure_on_fresh_mask``)."""
+
+    t_s: float
+    """Time stamp of the frame [s]."""
+    depth_m: NDArray[np.floating]
+    """(H, W) its z-depth [m]."""
+    flow: FlowField | None
+    """F_k (frame k-1 -> k) as delivered, or None."""
 
 
 @dataclass(slots=True)
@@ -183,6 +199,11 @@ class RoftTracker:
         self._previous: _PreviousFrame | None = None
         self._mask: PixelSet | None = None
         self._totals: Counter[str] = Counter()
+        # velocity.remeasure_on_fresh_mask: per delivered frame, the KF's inputs and its state
+        # after the frame; the first frame whose stored twist a re-measurement changed
+        self._velocity_inputs: dict[int, _VelocityInput] = {}
+        self._velocity_states: dict[int, VelocityKF] = {}
+        self._twists_changed_from: int | None = None
 
     # ------------------------------------------------------------------ per-frame inputs
     def _erosion_radius_px(self, pixels: PixelSet, depth_m: NDArray[np.floating]) -> int:
@@ -198,6 +219,59 @@ class RoftTracker:
             cfg.mask_erosion_max_removed,
         )
 
+    def _flow_update(
+        self,
+        kf: VelocityKF,
+        prev: _PreviousFrame | None,
+        k: int,
+        t_s: float,
+        flow: FlowField | None,
+    ) -> int:
+        """Predicts and corrects ``kf`` with F_k read on ``prev`` (the mask and depth of the
+        frame before k); returns the pixels used (0 when the filter did not update)."""
+        if (
+            prev is None
+            or prev.pixels is None
+            or flow is None
+            or flow.from_k != prev.k
+            or flow.to_k != k
+            or not t_s - prev.t_s > 0
+        ):
+            return 0
+        dt = t_s - prev.t_s
+        meas = flow_measurement(
+            prev.pixels,
+            prev.depth_m,
+            flow,
+            self._intrinsics,
+            dt,
+            self._config.velocity,
+            stride=self._stride,
+        )
+        if kf.step(meas, frames=dt * self._context.fps, t_s=t_s, dt_s=dt):
+            return len(meas)
+        return 0
+
+    def _flow_mask(
+        self, k: int, t_s: float, pixels: PixelSet | None, depth_m: NDArray[np.floating]
+    ) -> _PreviousFrame:
+        """Frame k as the next flow measurement reads it: its mask eroded by
+        ``velocity.mask_erosion_px`` (or the metric rule) and its depth."""
+        if pixels is not None:
+            radius = self._erosion_radius_px(pixels, depth_m)
+            if radius:
+                pixels = erode_pixels(pixels, radius)
+        return _PreviousFrame(k, t_s, pixels, depth_m)
+
+    def _twist_for_ukf(self, kf: VelocityKF, updated: bool) -> tuple[F64 | None, F64 | None]:
+        """The UKF's velocity measurement (None when the KF did not update and stale twists are
+        skipped) and the covariance added to its noise (or None)."""
+        vcfg = self._config.velocity
+        if not updated and vcfg.skip_stale_velocity:
+            return None, None
+        cov = kf.P.copy() if vcfg.twist_covariance_to_ukf else None
+        return kf.x.copy(), cov
+
     def _velocity_step(
         self, obs: Observation, pixels: PixelSet | None
     ) -> tuple[F64 | None, F64 | None, int]:
@@ -205,42 +279,48 @@ class RoftTracker:
         none), the covariance to add to its noise (or None) and the pixels used."""
         if obs.depth_m is None:  # dropped camera frame: no measurement at all
             return None, None, 0
-        used = 0
-        updated = False
-        prev = self._previous
-        flow = obs.flow
-        if (
-            prev is not None
-            and prev.pixels is not None
-            and flow is not None
-            and flow.from_k == prev.k
-            and flow.to_k == obs.k
-        ):
-            dt = obs.t_s - prev.t_s
-            if dt > 0:
-                meas = flow_measurement(
-                    prev.pixels,
-                    prev.depth_m,
-                    flow,
-                    self._intrinsics,
-                    dt,
-                    self._config.velocity,
-                    stride=self._stride,
-                )
-                frames = dt * self._context.fps
-                if self._velocity_kf.step(meas, frames=frames, t_s=obs.t_s, dt_s=dt):
-                    used = len(meas)
-                    updated = True
-        if pixels is not None:
-            radius = self._erosion_radius_px(pixels, obs.depth_m)
-            if radius:
-                pixels = erode_pixels(pixels, radius)
-        self._previous = _PreviousFrame(obs.k, obs.t_s, pixels, obs.depth_m)
-        vcfg = self._config.velocity
-        if not updated and vcfg.skip_stale_velocity:
-            return None, None, used
-        cov = self._velocity_kf.P.copy() if vcfg.twist_covariance_to_ukf else None
-        return self._velocity_kf.x.copy(), cov, used
+        used = self._flow_update(self._velocity_kf, self._previous, obs.k, obs.t_s, obs.flow)
+        self._previous = self._flow_mask(obs.k, obs.t_s, pixels, obs.depth_m)
+        if self._config.velocity.remeasure_on_fresh_mask:
+            self._velocity_inputs[obs.k] = _VelocityInput(obs.t_s, obs.depth_m, obs.flow)
+            self._velocity_states[obs.k] = copy.deepcopy(self._velocity_kf)
+        twist, cov = self._twist_for_ukf(self._velocity_kf, used > 0)
+        return twist, cov, used
+
+    def _remeasure(self, k: int, history: tuple[tuple[int, PixelSet], ...]) -> int:
+        """``velocity.remeasure_on_fresh_mask``: a mask captured at c arrived at k; replays the
+        velocity KF over the frames c+1 .. k-1 with each flow read on that mask warped to the
+        frame before, replaces their stored twists, and leaves the warped mask of k-1 for frame
+        k's own update. Returns the number of frames re-measured."""
+        c = history[0][0]
+        if c >= k or c not in self._velocity_states or c not in self._velocity_inputs:
+            return 0
+        warped = dict(history)
+
+        def mask_at(j: int) -> PixelSet:
+            return warped[max(i for i in warped if i <= j)]
+
+        kf = copy.deepcopy(self._velocity_states[c])
+        inp = self._velocity_inputs[c]
+        prev = self._flow_mask(c, inp.t_s, mask_at(c), inp.depth_m)
+        count = 0
+        for j in range(c + 1, k):
+            inp_j = self._velocity_inputs.get(j)
+            if inp_j is None:  # a dropped camera frame: the filter did not run
+                continue
+            used = self._flow_update(kf, prev, j, inp_j.t_s, inp_j.flow)
+            prev = self._flow_mask(j, inp_j.t_s, mask_at(j), inp_j.depth_m)
+            self._velocity_states[j] = copy.deepcopy(kf)
+            twist, cov = self._twist_for_ukf(kf, used > 0)
+            if j in self._frames:
+                self._frames[j] = dataclasses.replace(self._frames[j], twist=twist, twist_cov=cov)
+            if self._twists_changed_from is None:
+                self._twists_changed_from = j
+            count += 1
+        if k - 1 in self._velocity_inputs:
+            self._velocity_kf = kf
+            self._previous = prev
+        return count
 
     def _file_poses(
         self, k: int, poses: tuple[PoseDetection, ...]
@@ -542,13 +622,17 @@ class RoftTracker:
         cfg = self._config
         pixels: PixelSet | None = None
         mask_counts: dict[str, int] = {}
+        mask_step: MaskStep | None = None
         if cfg.use_flow or self._uses_outlier_test:
             masks: tuple[MaskDetection, ...] = obs.masks
             mask_step = self._mask_sync.step(k, obs.flow if cfg.use_flow else None, masks)
             pixels, mask_counts = mask_step.pixels, mask_step.counts
         self._mask = pixels
         twist, twist_cov, flow_pixels = (None, None, 0)
+        remeasured = 0
         if cfg.use_flow:
+            if cfg.velocity.remeasure_on_fresh_mask and mask_step is not None and mask_step.history:
+                remeasured = self._remeasure(k, mask_step.history)
             twist, twist_cov, flow_pixels = self._velocity_step(obs, pixels)
         samples = None
         if self._uses_outlier_test and pixels is not None and obs.depth_m is not None:
@@ -563,12 +647,15 @@ class RoftTracker:
             "flow_pixels": flow_pixels,
             "mask_pixels": len(pixels) if pixels is not None else 0,
             "replayed_frames": replay,
+            "remeasured_frames": remeasured,
             "poses_gated": gated,
             **{f"mask_{name}": n for name, n in mask_counts.items()},
             **{f"poses_dropped_{reason}": n for reason, n in dropped.items()},
             **{f"total_{name}": n for name, n in self._totals.items()},
         }
-        spatial_twist = self._velocity_kf.x_frame.copy() if cfg.use_flow else None
+        spatial_twist = None
+        if cfg.use_flow and (self._velocity_kf.updates > 0 or cfg.velocity.report_unmeasured_twist):
+            spatial_twist = self._velocity_kf.x_frame.copy()
         if estimate_belief is None:
             return Estimate.invalid(
                 k,
@@ -615,9 +702,15 @@ class RoftTracker:
         by frame k alone), storing every belief; returns frame k's belief (None before the
         first pose) and the number of frames run."""
         start = self._replay_start(k, new)
+        changed = self._twists_changed_from  # stored twists a re-measurement replaced
+        self._twists_changed_from = None
         if start is None:
             return None, 0
         j0, belief = start
+        if changed is not None and changed < j0:
+            first = max(changed, min(self._beliefs) + 1)  # beliefs are stored from init - 1
+            if first < j0:
+                j0, belief = first, self._beliefs[first - 1]
         for j in range(j0, k + 1):
             belief = self._advance(j, belief)
             self._beliefs[j] = belief
@@ -644,6 +737,9 @@ class RoftTracker:
         oldest = k - self._horizon
         for j in [j for j in self._frames if j < oldest]:
             del self._frames[j]
+        for j in [j for j in self._velocity_inputs if j < oldest]:
+            del self._velocity_inputs[j]
+            self._velocity_states.pop(j, None)
         for j in [j for j in self._beliefs if j < oldest - 1]:
             del self._beliefs[j]
         for j in [j for j in self._gate_streaks if j < oldest - 1]:

@@ -203,6 +203,29 @@ class VelocityKF:
         self._rate = TwistRateFilter(
             np.repeat([cfg.rate_psd_linear, cfg.rate_psd_angular], 3), cfg.rate_noise_memory
         )
+        # motion_model = "constant_acceleration": (12,) state (twist at t_s [m/s, rad/s], its
+        # rate [m/s^2, rad/s^2]) at time _t_s [s], covariance (12, 12); the prior covariance of
+        # the twist is the constant model's at its first update (cov_*0 plus one frame of Q)
+        self.X: F64 = np.concatenate([self.x, np.zeros(6)])
+        """(12,) ``constant_acceleration`` state: (twist at the last update's frame, its rate
+        d/dt) [m/s, rad/s, m/s^2, rad/s^2], camera frame."""
+        self.P_X: F64 = np.diag(
+            np.concatenate(
+                [
+                    np.diag(self.P) + self._Q_base,
+                    np.repeat([cfg.cov_rate0_linear, cfg.cov_rate0_angular], 3),
+                ]
+            )
+        )
+        """(12, 12) covariance of ``X``."""
+        self._t_s: float | None = None
+        self._twist_noise_sum = np.zeros(6)
+        self._twist_noise_weight = 0.0
+        self.twist_noise: F64 = np.zeros(6)
+        """(6,) ``adapt_twist_noise``: the variance of the flow's interval-mean twist that the
+        per-pixel noise does not explain [(m/s)^2, (rad/s)^2]."""
+        self.updates = 0
+        """Number of corrections so far (0: the twist is the prior, no flow has been used)."""
 
     def _solve(self, P_pred: F64, J2: F64, innovation: F64, weight: F64) -> tuple[F64, F64]:
         JtW = J2.T * weight  # (6, 2N)
@@ -235,6 +258,16 @@ class VelocityKF:
         cfg = self._config
         if measurement is None or len(measurement) < cfg.min_pixels:
             return False
+        if cfg.motion_model == "constant_acceleration":
+            if t_s is None or dt_s is None:
+                raise ValueError(
+                    "motion_model = 'constant_acceleration' needs the frame time t_s and the "
+                    "interval dt_s the flow spans"
+                )
+            self._step_constant_acceleration(measurement, t_s, dt_s)
+            self.updates += 1
+            return True
+        self.updates += 1
         x_pred = self.x
         P_pred = self.P + np.diag(self.q_diag * max(frames, 1e-9))
         J, y = measurement.J, measurement.y_px
@@ -287,3 +320,86 @@ class VelocityKF:
         self.x = x_new
         self.P = P_post
         return True
+
+    def _step_constant_acceleration(
+        self, measurement: FlowMeasurement, t_s: float, dt_s: float
+    ) -> None:
+        """One predict/correct of the constant-acceleration state (``motion_model``).
+
+        Predicts ``X`` from its time to ``t_s`` (``F = [[I, h I], [0, I]]``, white jerk
+        ``Q = q [[h^3/3, h^2/2], [h^2/2, h]]`` per component). The flow over ``(t_s - dt_s, t_s]``
+        measures the interval mean ``M X = twist - rate dt / 2``; the pixels are first reduced to
+        their least-squares interval mean ``m_ls`` with covariance ``P_ls`` (the information
+        form of the constant model, robust weights included), then ``m_ls`` corrects ``X`` with
+        noise ``P_ls + diag(r)``: ``r`` (``adapt_twist_noise``) is the running mean of
+        ``nu^2 - diag(M P- M^T + P_ls)`` over ``rate_noise_memory`` updates (covariance
+        matching on the innovations ``nu = m_ls - M X-``), the error of the flow's twist that
+        the per-pixel noise does not explain (pixels that are wrong together: a stale mask, flow
+        smoothed across the silhouette). Without ``r`` the rate would follow that error. Leaves
+        the interval mean and its covariance in ``x`` / ``P`` (the UKF's measurement) and the
+        twist at ``t_s`` in ``x_frame``.
+        """
+        cfg = self._config
+        h = max(t_s - self._t_s if self._t_s is not None else dt_s, 0.0)
+        eye = np.eye(6)
+        F = np.block([[eye, h * eye], [np.zeros((6, 6)), eye]])
+        q = np.repeat([cfg.rate_psd_linear, cfg.rate_psd_angular], 3)
+        Q = np.block(
+            [
+                [np.diag(q * h**3 / 3.0), np.diag(q * h**2 / 2.0)],
+                [np.diag(q * h**2 / 2.0), np.diag(q * h)],
+            ]
+        )
+        X_pred = F @ self.X
+        P_pred = F @ self.P_X @ F.T + Q
+        M = np.hstack([eye, -0.5 * dt_s * eye])  # (6, 12): state -> interval-mean twist
+        mean_pred = M @ X_pred
+        P_mean = M @ P_pred @ M.T
+        J, y = measurement.J, measurement.y_px
+        innovation = y - J @ mean_pred  # (N, 2)
+        if cfg.weight_flow:
+            lik = laplacian_likelihood(innovation, cfg.reweighting_pairs)
+        else:
+            lik = np.ones(len(measurement))
+        if measurement.cell_weight is not None:
+            lik = lik * measurement.cell_weight
+        J2 = J.reshape(-1, 6)
+        R = self._R
+        # the constant model's update of the interval mean, as the prior for the robust flow
+        # noise estimate (same as the constant model's step)
+        d_mean, _ = self._solve(P_mean, J2, innovation, (lik[:, None] / R[None, :]).reshape(-1))
+        if cfg.adapt_flow_noise:
+            residual = y - J @ (mean_pred + d_mean)
+            spread = _MAD_TO_SIGMA * np.median(np.abs(residual), axis=0)
+            R = np.maximum(R, spread**2)
+        self.flow_sigma_px = np.sqrt(R)
+        W = (lik[:, None] / R[None, :]).reshape(-1)
+        JtW = J2.T * W
+        info_ls = JtW @ J2
+        try:
+            P_ls = np.linalg.inv(info_ls)
+        except np.linalg.LinAlgError:  # the pixels do not observe the whole twist
+            P_ls = None
+        if P_ls is None or not np.isfinite(P_ls).all():
+            # pixel-level update without the twist noise
+            dX, P_post = self._solve(P_pred, J2 @ M, innovation, W)
+        else:
+            P_ls = 0.5 * (P_ls + P_ls.T)
+            nu = P_ls @ (JtW @ innovation.reshape(-1))  # m_ls - M X-
+            if cfg.adapt_twist_noise:
+                keep = 1.0 - 1.0 / cfg.rate_noise_memory
+                sample = np.maximum(nu**2 - np.diag(P_mean) - np.diag(P_ls), 0.0)
+                self._twist_noise_sum = keep * self._twist_noise_sum + sample
+                self._twist_noise_weight = keep * self._twist_noise_weight + 1.0
+                self.twist_noise = self._twist_noise_sum / self._twist_noise_weight
+            S = P_mean + P_ls + np.diag(self.twist_noise)
+            K = np.linalg.solve(S, M @ P_pred).T  # (12, 6) = P- M^T S^-1
+            dX = K @ nu
+            P_post = P_pred - K @ S @ K.T
+        self.X = X_pred + dX
+        self.P_X = 0.5 * (P_post + P_post.T)
+        self._t_s = t_s
+        self.x = M @ self.X
+        P = M @ self.P_X @ M.T
+        self.P = 0.5 * (P + P.T)
+        self.x_frame = self.X[:6].copy()
