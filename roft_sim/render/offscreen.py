@@ -32,6 +32,7 @@ from roft_sim.render.gl_backend import context_error
 
 __all__ = ["OffscreenRenderer", "RenderBuffers", "z_depth_from_depth_buffer"]
 
+Bool = NDArray[np.bool_]
 U8 = NDArray[np.uint8]
 F32 = NDArray[np.float32]
 I32 = NDArray[np.int32]
@@ -205,16 +206,7 @@ class OffscreenRenderer:
             if depth_from_colour:
                 out_depth = self._z_depth(self._depth_buf[::-1])
         if (depth and out_depth is None) or segmentation:
-            saved = flags.copy()
-            flags[mujoco.mjtRndFlag.mjRND_SEGMENT] = True
-            flags[mujoco.mjtRndFlag.mjRND_IDCOLOR] = True
-            flags[mujoco.mjtRndFlag.mjRND_SHADOW] = False
-            flat = self._flat_context()
-            mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN.value, flat)
-            try:
-                mujoco.mjr_render(self._rect, self._scene, flat)
-            finally:
-                np.copyto(flags, saved)
+            flat = self._draw_flat()
             mujoco.mjr_readPixels(
                 self._rgb_buf if segmentation else None,
                 self._depth_buf if depth else None,
@@ -226,6 +218,52 @@ class OffscreenRenderer:
             if segmentation:
                 out_geom = self._geom_ids(self._rgb_buf[::-1])
         return RenderBuffers(rgb=out_rgb, depth_m=out_depth, geom_id=out_geom)
+
+    def _draw_flat(self) -> mujoco.MjrContext:
+        """Draws MuJoCo's segmentation pass (flat id colours, no lighting or shadows) into the
+        single-sample framebuffer and returns its context, to read from."""
+        flags = self._scene.flags
+        saved = flags.copy()
+        flags[mujoco.mjtRndFlag.mjRND_SEGMENT] = True
+        flags[mujoco.mjtRndFlag.mjRND_IDCOLOR] = True
+        flags[mujoco.mjtRndFlag.mjRND_SHADOW] = False
+        flat = self._flat_context()
+        mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN.value, flat)
+        try:
+            mujoco.mjr_render(self._rect, self._scene, flat)
+        finally:
+            np.copyto(flags, saved)
+        return flat
+
+    def render_coverage(self, box_px: tuple[int, int, int, int] | None = None) -> Bool:
+        """Where anything is drawn: ``render(rgb=False, depth=True).depth_m > 0``, with the
+        depth read only inside ``box_px`` (reading is most of the cost of a small object).
+
+        Args:
+            box_px: ``(u0, v0, u1, v1)``, columns ``u0 .. u1 - 1`` and rows ``v0 .. v1 - 1``
+                [px] that hold everything drawn (the caller's bound); None = the whole image.
+
+        Returns:
+            (H, W) bool, False outside ``box_px``.
+        """
+        if self._ctx is None or self._gl is None:
+            raise RuntimeError("OffscreenRenderer used after close()")
+        u0, v0, u1, v1 = (0, 0, self._width, self._height) if box_px is None else box_px
+        if not (0 <= u0 <= u1 <= self._width and 0 <= v0 <= v1 <= self._height):
+            raise ValueError(
+                f"box_px {box_px} is not inside the {self._width}x{self._height} image"
+            )
+        out = np.zeros((self._height, self._width), dtype=bool)
+        if u1 == u0 or v1 == v0:
+            return out
+        self._gl.make_current()
+        flat = self._draw_flat()
+        buffer = np.empty((v1 - v0, u1 - u0), dtype=np.float32)
+        # OpenGL rows count from the bottom; the depth buffer is 0 where nothing was drawn
+        rect = mujoco.MjrRect(u0, self._height - v1, u1 - u0, v1 - v0)
+        mujoco.mjr_readPixels(None, buffer, rect, flat)
+        out[v0:v1, u0:u1] = buffer[::-1] > 0.0
+        return out
 
     def _z_depth(self, buffer: F32) -> F32:
         cam = self._scene.camera[0]
