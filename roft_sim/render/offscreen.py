@@ -11,9 +11,9 @@ MuJoCo renders without blending samples, so every pixel's depth belongs to the g
 That pass is drawn into a second, single-sample framebuffer (a second ``MjrContext`` made with
 ``offsamples = 0`` in the same OpenGL context): with multisampling off, every sample of a pixel
 holds the pixel centre's value, so the multisampled buffer and its resolve give the same ids and
-depth, bit for bit (tested), for about a quarter of the fill and no resolve (3 vs 14 ms of CPU per
-640x480 pass on llvmpipe). Without segmentation and without multisampling, depth is read from the
-colour pass (one pass).
+depth, bit for bit (tested), for about a quarter of the fill and no resolve (3.2 vs 11-12 ms of
+CPU per 640x480 pass on llvmpipe). Without segmentation and without multisampling, depth is read
+from the colour pass (one pass).
 
 ``MUJOCO_GL`` must be set before ``mujoco`` is first imported: call
 ``roft_sim.render.gl_backend.select_gl_backend(os.environ)`` first (the CLI and tests do).
