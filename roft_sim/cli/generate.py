@@ -260,8 +260,11 @@ def _print_summary(
 
 def _run(args: argparse.Namespace) -> int:
     from roft_sim.assets import default_cache_dir
-    from roft_sim.render.gl_backend import require_gl_backend
+    from roft_sim.render.gl_backend import require_gl_backend, start_gl_probe
 
+    # the backend's probe (a subprocess of about a second) runs while the library is imported
+    # and the scenarios are loaded; require_gl_backend below waits for it
+    start_gl_probe(os.environ)
     if args.format not in _FORMATS:
         raise ConfigError(
             f"unknown --format {args.format!r}; expected one of {', '.join(_FORMATS)}"

@@ -376,20 +376,15 @@ class SequenceGenerator:
             zip(frame.distractor_names, frame.T_cam_distractors, strict=True)
         ):
             visible = frame.body_index == frame.body_names.index(f"distractor{i}")
-            depth = self._distractor_silhouettes[i].render_depth(T, self.scenario.intrinsics)[0]
+            full = self._distractor_silhouettes[i].render_silhouette(T, self.scenario.intrinsics)
             truths.append(
-                DistractorTruth(
-                    name=name, T_cam_obj=T, mask=visible, mask_full=(depth > 0) | visible
-                )
+                DistractorTruth(name=name, T_cam_obj=T, mask=visible, mask_full=full | visible)
             )
         return tuple(truths)
 
     def _full_silhouette(self, frame: RenderedFrame) -> Bool:
         assert self._silhouettes is not None
-        depth: NDArray[np.float32] = self._silhouettes.render_depth(
-            frame.T_cam_obj, self.scenario.intrinsics
-        )[0]
-        return depth > 0
+        return self._silhouettes.render_silhouette(frame.T_cam_obj, self.scenario.intrinsics)
 
     def _pose_detection(self, k: int, vis_k: float) -> F64 | None:
         """Frame k's detection: the estimator over the whole track, frame k's visible fraction

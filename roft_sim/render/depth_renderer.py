@@ -15,13 +15,14 @@ import mujoco
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from roft_sim.geometry import CameraIntrinsics, as_transform
+from roft_sim.geometry import CameraIntrinsics, as_transform, project_points
 from roft_sim.render.camera import mujoco_camera_params
 from roft_sim.render.offscreen import OffscreenRenderer
 from roft_sim.scene.builder import BuiltScene, build_scene
 from roft_sim.scene.config import BackgroundConfig, RenderConfig, SceneConfig, TableConfig
 from roft_sim.scene.mocap import set_mocap_pose
 
+Bool = NDArray[np.bool_]
 F32 = NDArray[np.float32]
 F64 = NDArray[np.float64]
 
@@ -49,6 +50,13 @@ class MujocoDepthRenderer:
             vertices_m=np.asarray(mesh.vertices_m, dtype=np.float64),
             faces=np.asarray(mesh.faces, dtype=np.int64),
         )
+        v = self._mesh.vertices_m
+        lo, hi = v.min(axis=0), v.max(axis=0)
+        # (8, 3) corners of the mesh's axis-aligned box, object frame [m]
+        self._box_corners_m = np.array(
+            [[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
+        )
+        self._znear_m = float(znear_m)
         self._render_config = RenderConfig(znear_m=znear_m, zfar_m=zfar_m)
         self._scenes: dict[
             tuple[int, int], tuple[BuiltScene, mujoco.MjData, OffscreenRenderer]
@@ -89,6 +97,16 @@ class MujocoDepthRenderer:
         ]
         return built, data, renderer
 
+    @staticmethod
+    def _pose(
+        built: BuiltScene, data: mujoco.MjData, renderer: OffscreenRenderer, T_cam_obj: F64
+    ) -> None:
+        """Puts the object at ``T_cam_obj`` (4, 4) [m] in the renderer's scene."""
+        set_mocap_pose(data, built.object_mocap, T_cam_obj)
+        mujoco.mj_kinematics(built.model, data)
+        mujoco.mj_camlight(built.model, data)
+        renderer.update(data, built.camera_id)
+
     def render_depth(self, T_cam_obj: ArrayLike, intrinsics: CameraIntrinsics) -> F32:
         """Depth images of the object alone.
 
@@ -105,14 +123,45 @@ class MujocoDepthRenderer:
         built, data, renderer = self._scene_for(intrinsics)
         out = np.empty((T.shape[0],) + intrinsics.shape, dtype=np.float32)
         for i, pose in enumerate(T):
-            set_mocap_pose(data, built.object_mocap, pose)
-            mujoco.mj_kinematics(built.model, data)
-            mujoco.mj_camlight(built.model, data)
-            renderer.update(data, built.camera_id)
+            self._pose(built, data, renderer, pose)
             depth = renderer.render(rgb=False, depth=True).depth_m
             assert depth is not None
             out[i] = depth
         return out
+
+    def render_silhouette(self, T_cam_obj: ArrayLike, intrinsics: CameraIntrinsics) -> Bool:
+        """The object's silhouette at one pose: ``render_depth(T_cam_obj, intrinsics)[0] > 0``,
+        bit for bit, reading only the pixels inside the projection of the mesh's box (plus 2 px)
+        when the whole box is beyond the near plane.
+
+        Args:
+            T_cam_obj: (4, 4) object pose in the camera frame [m].
+            intrinsics: camera to render with.
+
+        Returns:
+            (H, W) bool, True where the object is drawn.
+        """
+        T = as_transform(T_cam_obj)
+        built, data, renderer = self._scene_for(intrinsics)
+        self._pose(built, data, renderer, T)
+        return renderer.render_coverage(self._box_px(T, intrinsics))
+
+    def _box_px(
+        self, T_cam_obj: F64, intrinsics: CameraIntrinsics
+    ) -> tuple[int, int, int, int] | None:
+        """``(u0, v0, u1, v1)`` [px] holding the projection of the mesh's box grown by 2 px and
+        clipped to the image, or None when a corner is not beyond the near plane (then the
+        projection of the box does not bound the drawing)."""
+        p = self._box_corners_m @ T_cam_obj[:3, :3].T + T_cam_obj[:3, 3]
+        if not (p[:, 2] > self._znear_m).all():
+            return None
+        uv = project_points(intrinsics, p)
+        w, h = intrinsics.width_px, intrinsics.height_px
+        u0 = min(max(int(np.floor(uv[:, 0].min())) - 2, 0), w)
+        v0 = min(max(int(np.floor(uv[:, 1].min())) - 2, 0), h)
+        u1 = max(min(int(np.ceil(uv[:, 0].max())) + 3, w), u0)
+        v1 = max(min(int(np.ceil(uv[:, 1].max())) + 3, h), v0)
+        return u0, v0, u1, v1
 
     def close(self) -> None:
         """Frees every OpenGL context (idempotent)."""

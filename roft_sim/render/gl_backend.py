@@ -9,11 +9,12 @@ roft_sim's rendering without having chosen gets the same choice (:func:`prepare_
 
 from __future__ import annotations
 
-import functools
 import os
 import subprocess
 import sys
-from collections.abc import MutableMapping
+import threading
+from collections.abc import Mapping, MutableMapping
+from concurrent.futures import Future
 
 from roft_sim.errors import RenderBackendError
 
@@ -21,6 +22,7 @@ __all__ = [
     "BACKENDS",
     "INSTALL_HINT",
     "select_gl_backend",
+    "start_gl_probe",
     "probe_gl_backend",
     "require_gl_backend",
     "prepare_mujoco_gl",
@@ -46,8 +48,46 @@ _PROBE_SCRIPT = (
 )
 
 
-@functools.cache
+_PROBES: dict[str, Future[str | None]] = {}
+"""Each backend's probe, run once per process (on a thread: :func:`start_gl_probe`)."""
+_PROBES_LOCK = threading.Lock()
+
+
+def _probe_future(backend: str) -> Future[str | None]:
+    """The probe of ``backend``, started on a daemon thread on the first call."""
+    with _PROBES_LOCK:
+        future = _PROBES.get(backend)
+        if future is None:
+            future = _PROBES[backend] = Future()
+            threading.Thread(
+                target=_run_probe, args=(backend, future), name="roft-sim-gl-probe", daemon=True
+            ).start()
+    return future
+
+
+def _run_probe(backend: str, future: Future[str | None]) -> None:
+    try:
+        future.set_result(_probe_in_subprocess(backend))
+    except BaseException as e:  # handed to whoever waits for the result
+        future.set_exception(e)
+
+
 def _probe(backend: str) -> str | None:
+    """None when ``backend`` renders in a fresh process, else the error it printed (probed
+    once per process; waits for a probe :func:`start_gl_probe` started)."""
+    return _probe_future(backend).result()
+
+
+def start_gl_probe(environ: Mapping[str, str]) -> None:
+    """Starts probing the backend :func:`select_gl_backend` tries first (``MUJOCO_GL``, else
+    EGL) in the background and returns at once, so that the probe's subprocess (about a second:
+    it imports MuJoCo and renders) runs while the caller imports and loads its inputs; the
+    selection waits for it. Does nothing when MuJoCo is already imported."""
+    if "mujoco" not in sys.modules:
+        _probe_future(environ.get("MUJOCO_GL") or BACKENDS[0])
+
+
+def _probe_in_subprocess(backend: str) -> str | None:
     """None when ``backend`` renders in a fresh process, else the error it printed."""
     env = {"MUJOCO_GL": backend, "PYOPENGL_PLATFORM": backend}
     full_env = {**os.environ, **env}

@@ -8,7 +8,12 @@ segmentation as geom ids (-1 = background).
 The colour pass uses the model's multisampling (``vis.quality.offsamples``) and, if asked, shadows.
 Depth and segmentation come from MuJoCo's segmentation pass (flat colours, no lighting), which
 MuJoCo renders without blending samples, so every pixel's depth belongs to the geom its id names.
-Without segmentation and without multisampling, depth is read from the colour pass (one pass).
+That pass is drawn into a second, single-sample framebuffer (a second ``MjrContext`` made with
+``offsamples = 0`` in the same OpenGL context): with multisampling off, every sample of a pixel
+holds the pixel centre's value, so the multisampled buffer and its resolve give the same ids and
+depth, bit for bit (tested), for about a quarter of the fill and no resolve (3.2 vs 11-12 ms of
+CPU per 640x480 pass on llvmpipe). Without segmentation and without multisampling, depth is read
+from the colour pass (one pass).
 
 ``MUJOCO_GL`` must be set before ``mujoco`` is first imported: call
 ``roft_sim.render.gl_backend.select_gl_backend(os.environ)`` first (the CLI and tests do).
@@ -27,6 +32,7 @@ from roft_sim.render.gl_backend import context_error
 
 __all__ = ["OffscreenRenderer", "RenderBuffers", "z_depth_from_depth_buffer"]
 
+Bool = NDArray[np.bool_]
 U8 = NDArray[np.uint8]
 F32 = NDArray[np.float32]
 I32 = NDArray[np.int32]
@@ -93,14 +99,13 @@ class OffscreenRenderer:
             )
         self._model = model
         self._width, self._height = int(width_px), int(height_px)
+        self._flat_ctx: mujoco.MjrContext | None = None
         try:
             self._gl = mujoco.GLContext(self._width, self._height)
             self._gl.make_current()
-            self._ctx = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_50.value)
+            self._ctx = self._make_context(model)
         except (mujoco.FatalError, RuntimeError, AttributeError) as e:
             raise context_error(e) from e
-        mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN.value, self._ctx)
-        self._ctx.readDepthMap = mujoco.mjtDepthMap.mjDEPTH_ZEROFAR
         self._scene = mujoco.MjvScene(model, maxgeom=max_geom)
         self._option = mujoco.MjvOption()
         self._camera = mujoco.MjvCamera()
@@ -108,6 +113,33 @@ class OffscreenRenderer:
         self._rect = mujoco.MjrRect(0, 0, self._width, self._height)
         self._rgb_buf = np.empty((self._height, self._width, 3), dtype=np.uint8)
         self._depth_buf = np.empty((self._height, self._width), dtype=np.float32)
+
+    @staticmethod
+    def _make_context(model: mujoco.MjModel) -> mujoco.MjrContext:
+        """A rendering context of ``model`` in the current OpenGL context, offscreen, depth
+        read as reversed Z (``mjDEPTH_ZEROFAR``); multisampled as ``model`` says."""
+        ctx = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_50.value)
+        mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN.value, ctx)
+        ctx.readDepthMap = mujoco.mjtDepthMap.mjDEPTH_ZEROFAR
+        return ctx
+
+    def _flat_context(self) -> mujoco.MjrContext:
+        """The context of the segmentation pass: the colour pass's when that one is not
+        multisampled, else a single-sample one made on first use (module doc)."""
+        assert self._ctx is not None
+        if self._model.vis.quality.offsamples <= 0:
+            return self._ctx
+        if self._flat_ctx is None:
+            quality = self._model.vis.quality
+            samples = quality.offsamples
+            quality.offsamples = 0
+            try:
+                self._flat_ctx = self._make_context(self._model)
+            except (mujoco.FatalError, RuntimeError, AttributeError) as e:
+                raise context_error(e) from e
+            finally:
+                quality.offsamples = samples
+        return self._flat_ctx
 
     @property
     def width_px(self) -> int:
@@ -162,6 +194,7 @@ class OffscreenRenderer:
         if rgb:
             saved = flags.copy()
             flags[mujoco.mjtRndFlag.mjRND_SHADOW] = shadows
+            mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN.value, self._ctx)
             try:
                 mujoco.mjr_render(self._rect, self._scene, self._ctx)
             finally:
@@ -173,25 +206,64 @@ class OffscreenRenderer:
             if depth_from_colour:
                 out_depth = self._z_depth(self._depth_buf[::-1])
         if (depth and out_depth is None) or segmentation:
-            saved = flags.copy()
-            flags[mujoco.mjtRndFlag.mjRND_SEGMENT] = True
-            flags[mujoco.mjtRndFlag.mjRND_IDCOLOR] = True
-            flags[mujoco.mjtRndFlag.mjRND_SHADOW] = False
-            try:
-                mujoco.mjr_render(self._rect, self._scene, self._ctx)
-            finally:
-                np.copyto(flags, saved)
+            flat = self._draw_flat()
             mujoco.mjr_readPixels(
                 self._rgb_buf if segmentation else None,
                 self._depth_buf if depth else None,
                 self._rect,
-                self._ctx,
+                flat,
             )
             if depth:
                 out_depth = self._z_depth(self._depth_buf[::-1])
             if segmentation:
                 out_geom = self._geom_ids(self._rgb_buf[::-1])
         return RenderBuffers(rgb=out_rgb, depth_m=out_depth, geom_id=out_geom)
+
+    def _draw_flat(self) -> mujoco.MjrContext:
+        """Draws MuJoCo's segmentation pass (flat id colours, no lighting or shadows) into the
+        single-sample framebuffer and returns its context, to read from."""
+        flags = self._scene.flags
+        saved = flags.copy()
+        flags[mujoco.mjtRndFlag.mjRND_SEGMENT] = True
+        flags[mujoco.mjtRndFlag.mjRND_IDCOLOR] = True
+        flags[mujoco.mjtRndFlag.mjRND_SHADOW] = False
+        flat = self._flat_context()
+        mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN.value, flat)
+        try:
+            mujoco.mjr_render(self._rect, self._scene, flat)
+        finally:
+            np.copyto(flags, saved)
+        return flat
+
+    def render_coverage(self, box_px: tuple[int, int, int, int] | None = None) -> Bool:
+        """Where anything is drawn: ``render(rgb=False, depth=True).depth_m > 0``, with the
+        depth read only inside ``box_px`` (reading is most of the cost of a small object).
+
+        Args:
+            box_px: ``(u0, v0, u1, v1)``, columns ``u0 .. u1 - 1`` and rows ``v0 .. v1 - 1``
+                [px] that hold everything drawn (the caller's bound); None = the whole image.
+
+        Returns:
+            (H, W) bool, False outside ``box_px``.
+        """
+        if self._ctx is None or self._gl is None:
+            raise RuntimeError("OffscreenRenderer used after close()")
+        u0, v0, u1, v1 = (0, 0, self._width, self._height) if box_px is None else box_px
+        if not (0 <= u0 <= u1 <= self._width and 0 <= v0 <= v1 <= self._height):
+            raise ValueError(
+                f"box_px {box_px} is not inside the {self._width}x{self._height} image"
+            )
+        out = np.zeros((self._height, self._width), dtype=bool)
+        if u1 == u0 or v1 == v0:
+            return out
+        self._gl.make_current()
+        flat = self._draw_flat()
+        buffer = np.empty((v1 - v0, u1 - u0), dtype=np.float32)
+        # OpenGL rows count from the bottom; the depth buffer is 0 where nothing was drawn
+        rect = mujoco.MjrRect(u0, self._height - v1, u1 - u0, v1 - v0)
+        mujoco.mjr_readPixels(None, buffer, rect, flat)
+        out[v0:v1, u0:u1] = buffer[::-1] > 0.0
+        return out
 
     def _z_depth(self, buffer: F32) -> F32:
         cam = self._scene.camera[0]
@@ -223,8 +295,10 @@ class OffscreenRenderer:
         """Frees the OpenGL resources (idempotent)."""
         if self._ctx is not None and self._gl is not None:
             self._gl.make_current()
+            if self._flat_ctx is not None:
+                self._flat_ctx.free()
             self._ctx.free()
-        self._ctx = None
+        self._ctx = self._flat_ctx = None
         if self._gl is not None:
             self._gl.free()
         self._gl = None

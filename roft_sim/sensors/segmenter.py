@@ -144,6 +144,41 @@ def _signed_distance(mask: Bool) -> F32:
     return np.where(mask, inside - 0.5, 0.5 - outside).astype(np.float32)
 
 
+def _noisy_boundary(mask: Bool, field: F32, offset_px: float, noise_px: float) -> Bool:
+    """``_signed_distance(mask) + offset_px + noise_px * field > 0`` (float32), computed on the
+    mask's bounding box grown by the farthest reach of the noise only.
+
+    A pixel at distance ``D`` outside the mask is set only if ``0.5 - D + offset_px + noise_px
+    field > 0``, so none farther than ``reach = 0.5 + offset_px + noise_px max(field)`` is; the
+    chamfer distance is at least the larger of the row and column offsets, so no pixel outside
+    the box grown by ``ceil(reach) + 2`` (2 px for float32 rounding) is set. Inside the box both
+    distance transforms give the full image's values: every object pixel and the zeros next to
+    them are in it, and the transform's sums are integers (OpenCV's 5x5 chamfer), so the
+    result is the full-image formula's bit for bit (tested against it), in a fraction of the
+    time for an object smaller than the image.
+
+    Args:
+        mask: (h, w) bool mask with at least one pixel, network input resolution.
+        field: (h, w) float32 unit-std boundary noise field.
+        offset_px: global dilation [network input px].
+        noise_px: std of the boundary displacement [network input px].
+
+    Returns:
+        (h, w) bool noisy mask.
+    """
+    h, w = mask.shape
+    rows, cols = np.flatnonzero(mask.any(1)), np.flatnonzero(mask.any(0))
+    reach = 0.5 + float(offset_px) + float(noise_px) * max(float(field.max()), 0.0)
+    grow = max(int(np.ceil(reach)), 0) + 2
+    r0, r1 = max(int(rows[0]) - grow, 0), min(int(rows[-1]) + 1 + grow, h)
+    c0, c1 = max(int(cols[0]) - grow, 0), min(int(cols[-1]) + 1 + grow, w)
+    sdf = _signed_distance(mask[r0:r1, c0:c1])
+    noisy = sdf + np.float32(offset_px) + np.float32(noise_px) * field[r0:r1, c0:c1]
+    out = np.zeros((h, w), dtype=bool)
+    out[r0:r1, c0:c1] = noisy > 0
+    return out
+
+
 def _smooth_field(rng: np.random.Generator, shape: tuple[int, int], sigma_px: float) -> F32:
     white = rng.standard_normal(shape).astype(np.float32)
     if sigma_px < 0.3:
@@ -220,10 +255,7 @@ def simulate_mask_uint8(
         low = cv2.resize(padded, (wi, hi), interpolation=cv2.INTER_AREA) >= 0.5
     if not low.any():
         return None  # too small for the network at its resolution
-    sdf = _signed_distance(low)
-    noise_px = noise_gain * c.boundary_noise_px
-    noisy = sdf + np.float32(offset_px) + np.float32(noise_px) * field
-    low = noisy > 0
+    low = _noisy_boundary(low, field, offset_px, noise_gain * c.boundary_noise_px)
     if c.mask_head_px > 0:
         low = _mask_head(low, c.mask_head_px)
     low_u8 = low.astype(np.uint8) * 255

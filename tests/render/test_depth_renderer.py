@@ -65,3 +65,38 @@ def test_accepts_assets_with_a_mesh_and_rejects_bad_poses():
         assert not renderer.render_depth(behind, SMALL_CAMERA).any()
         with pytest.raises(ValueError, match="4, 4"):
             renderer.render_depth(np.eye(3), SMALL_CAMERA)
+
+
+def test_silhouette_reads_only_the_box_and_equals_the_depth_above_zero(monkeypatch):
+    import mujoco
+
+    read_shapes = []
+    read_pixels = mujoco.mjr_readPixels
+
+    def spy(rgb, depth, viewport, context):
+        read_shapes.append(None if depth is None else depth.shape)
+        return read_pixels(rgb, depth, viewport, context)
+
+    monkeypatch.setattr(mujoco, "mjr_readPixels", spy)
+    poses = list(SinusoidalTrajectory().sample(np.linspace(0.0, 2.0, 9)).T_ref_obj)
+    # cut by the image's border, close, and with a corner in front of the near plane
+    for dx_m, dz_m in ((0.3, 0.0), (0.0, -0.45), (0.0, -0.53)):
+        T = poses[0].copy()
+        T[0, 3] += dx_m
+        T[2, 3] += dz_m
+        poses.append(T)
+    with MujocoDepthRenderer(_model()) as renderer:
+        for camera in (SMALL_CAMERA, OFF_CENTRE_CAMERA):
+            for T in poses:
+                expected = renderer.render_depth(T, camera)[0] > 0
+                read_shapes.clear()
+                got = renderer.render_silhouette(T, camera)
+                np.testing.assert_array_equal(got, expected)
+                assert len(read_shapes) <= 1
+    with MujocoDepthRenderer(_model()) as renderer:
+        assert renderer._box_px(poses[-1], SMALL_CAMERA) is None  # a corner before the near plane
+        assert renderer.render_silhouette(poses[-1], SMALL_CAMERA).any()
+        read_shapes.clear()
+        renderer.render_silhouette(poses[0], SMALL_CAMERA)
+        (shape,) = read_shapes
+        assert shape[0] * shape[1] < SMALL_CAMERA.width_px * SMALL_CAMERA.height_px / 2

@@ -188,3 +188,32 @@ def test_boundary_error_relative_to_the_object_does_not_depend_on_the_camera_res
         )
     assert 0.93 < means[1280] < 0.97, means  # docs/sensors.md: about 0.95 for a box face
     assert abs(means[640] - means[1280]) < 0.01, means
+
+
+def test_noisy_boundary_on_the_grown_box_equals_the_full_image_formula():
+    # oracle: the signed distance and threshold over the whole image (the code before the box)
+    from roft_sim.sensors.segmenter import _noisy_boundary, _signed_distance, _smooth_field
+
+    rng = np.random.default_rng(7)
+    h, w = 120, 160
+    boxes = 0
+    for trial in range(60):
+        mask = np.zeros((h, w), np.uint8)
+        for _ in range(int(rng.integers(1, 4))):  # blobs, some cut by the image border
+            centre = (int(rng.integers(-10, w + 10)), int(rng.integers(-10, h + 10)))
+            axes = (int(rng.integers(1, 40)), int(rng.integers(1, 40)))
+            cv2.ellipse(mask, centre, axes, float(rng.uniform(0, 180)), 0, 360, 1, -1)
+        if trial % 7 == 0:
+            mask[int(rng.integers(h)), int(rng.integers(w))] = 1  # a lone pixel
+        low = mask.astype(bool)
+        if not low.any():
+            continue
+        field = _smooth_field(rng, (h, w), float(rng.choice([0.0, 2.0, 8.0])))
+        offset_px = float(rng.normal(0.0, 3.0))
+        noise_px = float(rng.choice([0.0, 1.0, 2.5, 6.0]))
+        expected = _signed_distance(low) + np.float32(offset_px) + np.float32(noise_px) * field > 0
+        got = _noisy_boundary(low, field, offset_px, noise_px)
+        np.testing.assert_array_equal(got, expected, err_msg=f"trial {trial}")
+        rows, cols = np.flatnonzero(low.any(1)), np.flatnonzero(low.any(0))
+        boxes += (rows[-1] - rows[0] + 40 < h) and (cols[-1] - cols[0] + 40 < w)
+    assert boxes >= 10  # the box was smaller than the image in many trials

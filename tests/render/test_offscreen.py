@@ -1,0 +1,54 @@
+"""OffscreenRenderer: the segmentation pass's single-sample framebuffer."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+from stand_ins import SMALL_CAMERA, SinusoidalTrajectory, grid_box_mesh
+
+from roft_sim.geometry import quat_from_matrix
+from roft_sim.render.offscreen import OffscreenRenderer
+from roft_sim.scene.builder import build_scene
+from roft_sim.scene.config import HandConfig, RenderConfig, SceneConfig
+
+pytestmark = pytest.mark.render
+
+
+def test_segmentation_pass_is_single_sample_and_equals_the_multisampled_one():
+    # a textured box on the table with the proxy hand in front of it: many edges, three bodies
+    built = build_scene(
+        intrinsics=SMALL_CAMERA,
+        object_mesh=grid_box_mesh(n=6, texture_px=64),
+        scene=SceneConfig(hand=HandConfig(enabled=True, side="random")),
+        render=RenderConfig(msaa_samples=4),
+        rng=np.random.default_rng(0),
+    )
+    data = mujoco.MjData(built.model)
+    flag = mujoco.mjtRndFlag
+    with OffscreenRenderer(built.model, SMALL_CAMERA.width_px, SMALL_CAMERA.height_px) as r:
+        for T in SinusoidalTrajectory().sample(np.array([0.0, 0.4, 1.3])).T_ref_obj:
+            for mocap in (built.object_mocap, built.hand_mocap):
+                assert mocap is not None
+                data.mocap_pos[mocap] = T[:3, 3]
+                data.mocap_quat[mocap] = quat_from_matrix(T[:3, :3])
+            mujoco.mj_kinematics(built.model, data)
+            mujoco.mj_camlight(built.model, data)
+            r.update(data, built.camera_id)
+            out = r.render(rgb=True, depth=True, segmentation=True)
+            assert out.geom_id is not None and out.depth_m is not None
+            assert len(np.unique(out.geom_id)) >= 3
+            # the same pass drawn into the colour pass's multisampled framebuffer and resolved
+            ctx = r._ctx
+            assert ctx is not None and ctx.offSamples == 4 and r._flat_context().offSamples == 0
+            saved = r.scene.flags.copy()
+            r.scene.flags[flag.mjRND_SEGMENT] = r.scene.flags[flag.mjRND_IDCOLOR] = True
+            r.scene.flags[flag.mjRND_SHADOW] = False
+            mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN.value, ctx)
+            mujoco.mjr_render(r._rect, r.scene, ctx)
+            np.copyto(r.scene.flags, saved)
+            ids = np.empty((r.height_px, r.width_px, 3), np.uint8)
+            buffer = np.empty((r.height_px, r.width_px), np.float32)
+            mujoco.mjr_readPixels(ids, buffer, r._rect, ctx)
+            np.testing.assert_array_equal(r._geom_ids(ids[::-1]), out.geom_id)
+            np.testing.assert_array_equal(r._z_depth(buffer[::-1]), out.depth_m)
