@@ -80,7 +80,8 @@ __all__ = [
 @dataclass(frozen=True, slots=True)
 class ScaleEstimate:
     """A forgetting-factor mean of NIS per measurement dimension (immutable, so it can be
-    stored per frame and replayed with the filter)."""
+    stored per frame and replayed with the filter); the persistent twist variances use it as a
+    forgetting mean of variance samples (one per fused pose, ``dof = 1``)."""
 
     nis_sum: float
     """Forgetting-weighted sum of NIS values (plus the prior's weight)."""
@@ -129,20 +130,13 @@ class BlockScales:
     """Time from the capture of the last fused (or initialising) pose to this frame [s]."""
 
     @staticmethod
-    def initial(
-        t: ScaleEstimate | None = None,
-        r: ScaleEstimate | None = None,
-        pose_excess: F64 | None = None,
-    ) -> BlockScales:
-        """Every factor 1 with the weight of one measurement, unless the pose-noise factors
-        ``t`` and ``r`` (e.g. :func:`detector_noise_prior`) and the excess (6, 6) are given."""
+    def initial(t: ScaleEstimate | None = None, r: ScaleEstimate | None = None) -> BlockScales:
+        """Every factor 1 with the weight of one measurement (unless the pose-noise factors
+        ``t`` and ``r`` are given, e.g. :func:`detector_noise_prior`), no excess, no persistent
+        twist error."""
         one = ScaleEstimate.prior(3)
         return BlockScales(
-            t if t is not None else one,
-            r if r is not None else one,
-            one,
-            one,
-            np.zeros((6, 6)) if pose_excess is None else np.asarray(pose_excess, np.float64),
+            t if t is not None else one, r if r is not None else one, one, one, np.zeros((6, 6))
         )
 
     def factors(self) -> F64:
