@@ -23,7 +23,7 @@ import pytest
 
 from roft_sim.harness.evaluation import estimate_errors
 from roft_sim.metrics import chi2_bounds, nees
-from roft_sim.records import MaskDetection, Observation, PoseDetection
+from roft_sim.records import Estimate, MaskDetection, Observation, PoseDetection
 from roft_sim.testing.fixtures import analytic_sequence
 from roft_sim.trackers.base import TrackerContext
 from roft_sim.trackers.roft import OutlierRejectionConfig, RoftConfig, RoftTracker
@@ -31,6 +31,7 @@ from roft_sim.trackers.roft.config import CovarianceScaleConfig
 from roft_sim.trackers.roft.covariance_scale import (
     ScaleEstimate,
     normalised_innovation_squared,
+    persistent_twist_samples,
     pose_excess_after,
 )
 from roft_sim.trackers.roft.twist_rate import TwistRateFilter
@@ -97,22 +98,29 @@ def _rotation(rotvec: np.ndarray) -> np.ndarray:
     return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
 
 
-def _noisy_observations(seed: int) -> list[Observation]:
+def _noisy_observations(
+    seed: int, *, first_pose_off_deg: float = 0.0, flow_gain: float = 1.0
+) -> list[Observation]:
     """GT flow + 1 px noise every frame; every 6th frame's GT mask and a pose with 1 cm and
-    3 deg of noise, arriving 6 frames late (the paper schedule)."""
+    3 deg of noise, arriving 6 frames late (the paper schedule). ``first_pose_off_deg`` turns
+    the first pose by that angle more (about the camera's x axis); ``flow_gain`` multiplies
+    the flow (an error of the twist proportional to the motion: it persists while the motion
+    does)."""
     rng = np.random.default_rng(seed)
     obs = []
     for k in range(len(SEQ)):
         flow = SEQ.flows["gt"][k]
         if flow is not None:
             noise = rng.normal(0.0, 1.0, flow.flow_px.shape).astype(np.float32)
-            flow = dataclasses.replace(flow, flow_px=flow.flow_px + noise)
+            flow = dataclasses.replace(flow, flow_px=np.float32(flow_gain) * flow.flow_px + noise)
         poses, masks = (), ()
         c = k - 6
         if c >= 0 and c % 6 == 0:
             T = SEQ.gt.T_cam_obj[c].copy()
             T[:3, 3] += rng.normal(0.0, 0.01, 3)
             T[:3, :3] = _rotation(rng.normal(0.0, np.radians(3.0), 3)) @ T[:3, :3]
+            if c == 0 and first_pose_off_deg:
+                T[:3, :3] = _rotation(np.radians([first_pose_off_deg, 0.0, 0.0])) @ T[:3, :3]
             poses = (PoseDetection(T_cam_obj=T, capture_k=c, arrival_k=k, detection_id=c),)
             masks = (
                 MaskDetection(mask=SEQ.mask(c, "gt"), capture_k=c, arrival_k=k, detection_id=c),
@@ -131,20 +139,31 @@ def _noisy_observations(seed: int) -> list[Observation]:
     return obs
 
 
-def _nees_after_two_poses(enable: bool, seed: int) -> tuple[np.ndarray, np.ndarray]:
+def _run(seed: int, covariance_scale: CovarianceScaleConfig, **faults: float) -> list[Estimate]:
     config = RoftConfig(
         outlier_rejection=OutlierRejectionConfig(enable=False),
-        covariance_scale=CovarianceScaleConfig(enable=enable),
+        covariance_scale=covariance_scale,
     )
     context = TrackerContext(
         intrinsics=SEQ.intrinsics, fps=SEQ.fps, object_model=SEQ.model, rng=np.random.default_rng(0)
     )
     tracker = RoftTracker(config, context)
     tracker.reset(None)
-    estimates = [tracker.step(o) for o in _noisy_observations(seed)]
-    late = [e for e in estimates if e.valid and e.k >= 18]  # poses captured at 0, 6, 12 fused
-    errors, covariances = estimate_errors(late, SEQ.gt, np.array([e.k for e in late]))
-    return nees(errors, covariances), np.stack([e.T_cam_obj for e in late])
+    return [tracker.step(o) for o in _noisy_observations(seed, **faults)]
+
+
+def _nees(estimates: list[Estimate], frames: range, block: slice) -> tuple[np.ndarray, np.ndarray]:
+    """NEES of a block of the state (of ``ESTIMATE_COVARIANCE_ORDER``) at ``frames``, and the
+    poses there."""
+    chosen = [e for e in estimates if e.valid and e.k in frames]
+    errors, covariances = estimate_errors(chosen, SEQ.gt, np.array([e.k for e in chosen]))
+    values = nees(errors[:, block], covariances[:, block, block])
+    return values, np.stack([e.T_cam_obj for e in chosen])
+
+
+def _nees_after_two_poses(enable: bool, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    estimates = _run(seed, CovarianceScaleConfig(enable=enable))
+    return _nees(estimates, range(18, len(SEQ)), slice(None))  # poses captured at 0, 6, 12 fused
 
 
 def test_roft_nees_is_in_the_chi_square_band_on_noisy_flow():
@@ -159,6 +178,67 @@ def test_roft_nees_is_in_the_chi_square_band_on_noisy_flow():
     mean_on, mean_off = float(np.concatenate(on).mean()), float(np.concatenate(off).mean())
     assert lo <= mean_on <= hi, (mean_on, (lo, hi))
     assert mean_off > 3 * hi, mean_off  # the filter's own covariance is far too confident
+
+
+def test_a_first_pose_30_degrees_off_is_inside_the_reported_covariance():
+    # the first pose (captured at 0, arriving at 6) initialises the filter; the next one
+    # arrives at 12: frames 6-11 are reported from the first detection alone
+    lo, hi = chi2_bounds(6, 1)
+    pose_block, first_frames = slice(0, 6), range(6, 12)
+    with_prior, poses = _nees(
+        _run(0, CovarianceScaleConfig(), first_pose_off_deg=30.0), first_frames, pose_block
+    )
+    without, poses_without = _nees(
+        _run(0, CovarianceScaleConfig(detector_prior=False), first_pose_off_deg=30.0),
+        first_frames,
+        pose_block,
+    )
+    np.testing.assert_array_equal(poses, poses_without)  # the estimates are unchanged
+    assert lo <= float(with_prior.mean()) <= hi, with_prior
+    assert float(without.mean()) > 2 * hi, without  # the filter grows its own P by Q_ww
+
+
+def test_a_persistent_twist_error_is_inside_the_reported_velocity_covariance():
+    # the flow 1.5 times too long: the twist is off by half the motion, about the same from
+    # one frame to the next, which the change of the twist between frames cannot see; frames
+    # from 24 on follow three fused poses' innovations
+    _, hi = chi2_bounds(6, 1)
+    velocity_block, late = slice(6, 12), range(24, len(SEQ))
+    on, off = [], []
+    for seed in (0, 2):
+        values, poses = _nees(
+            _run(seed, CovarianceScaleConfig(), flow_gain=2.0), late, velocity_block
+        )
+        values_off, poses_off = _nees(
+            _run(seed, CovarianceScaleConfig(persistent_twist=False), flow_gain=2.0),
+            late,
+            velocity_block,
+        )
+        np.testing.assert_array_equal(poses, poses_off)  # the estimates are unchanged
+        on.append(values)
+        off.append(values_off)
+    mean_on, mean_off = float(np.concatenate(on).mean()), float(np.concatenate(off).mean())
+    assert mean_on <= hi, (mean_on, mean_off)  # 6.6
+    assert mean_off > hi, (mean_on, mean_off)  # 20.3
+
+
+def test_persistent_twist_samples_recover_a_twist_error_that_persists_over_the_gap():
+    rng = np.random.default_rng(4)
+    gap_s, n = 0.2, 20_000
+    P = np.diag([1e-4] * 3 + [4e-4] * 3)
+    R = np.diag([1e-3] * 3 + [1e-4] * 3)
+    sd_v, sd_w = 0.3, 0.5  # per axis [m/s], [rad/s]
+    e = rng.normal(0.0, 1.0, (n, 6)) * np.repeat([sd_v, sd_w], 3)
+    nu = (
+        rng.multivariate_normal(np.zeros(6), P + R, n) + gap_s * e
+    )  # prediction error + the twist error integrated over the gap
+    samples = np.array([persistent_twist_samples(x, P, np.zeros((6, 6)), R, gap_s) for x in nu])
+    # the mean recovers the variance (slightly above: negative samples are floored at 0)
+    assert samples[:, 0].mean() == pytest.approx(sd_v**2, rel=0.05)
+    assert samples[:, 1].mean() == pytest.approx(sd_w**2, rel=0.05)
+    np.testing.assert_array_equal(
+        persistent_twist_samples(nu[0], P, np.zeros((6, 6)), R, 0.0), [np.nan, np.nan]
+    )
 
 
 def test_twist_rate_filter_is_exact_for_a_linear_twist_and_harmless_on_noise():

@@ -514,9 +514,11 @@ class CovarianceScaleConfig:
     """Calibration of the REPORTED covariance (``Estimate.covariance``) by online variance-scale
     estimation (roft_sim/trackers/roft/covariance_scale.py; not in the reference). The velocity
     blocks (v, w) are multiplied by a forgetting-factor mean of the change of the twist
-    measurement between frames, normalised by the two measurements' noise (floored at 1); the
-    pose block (t, r) is calibrated as ``pose_block`` says. The filter's means and its internal
-    covariance are untouched, so the estimates are the same with it on or off."""
+    measurement between frames, normalised by the two measurements' noise (floored at 1), plus
+    the persistent twist error (``persistent_twist``); the pose block (t, r) is calibrated as
+    ``pose_block`` says, starting from the detector-noise prior (``detector_prior``). The
+    filter's means and its internal covariance are untouched, so the estimates are the same
+    with it on or off."""
 
     enable: bool = True
     """Scale the reported covariance; False reports the UKF's covariance as it is (the
@@ -530,6 +532,21 @@ class CovarianceScaleConfig:
     memory_measurements: float = 20.0
     """Memory of the forgetting-factor means [measurements of the block]: forgetting factor
     ``1 - 1 / memory``."""
+    detector_prior: bool = True
+    """Start the pose-noise estimate from the adaptive gate's prior (``gate.prior_translation_m``,
+    ``gate.prior_rotation_deg``, ``gate.prior_weight``) instead of the configured pose noise,
+    and report a pose (re)initialised from one detection with that noise as its error (the
+    excess over the filter's initial covariance): a first detection tens of degrees off is
+    then inside the reported covariance until fused poses' innovations replace the prior.
+    False: factor 1 and no excess at the start (the filter's initial covariance as it is)."""
+    persistent_twist: bool = True
+    """Add to the velocity blocks the variance of the twist's error that persists between
+    poses: covariance matching on the fused poses' innovations, the part of ``|nu|^2`` that
+    the predicted covariance, the excess and the estimated pose noise (the configured one
+    times its running factor, before this pose) do not explain, divided by the squared time
+    since the previous fused pose (the prediction integrates the twist over it). The
+    twist-change factor cannot see such errors. False: the velocity blocks are the UKF's
+    times the twist-change factor."""
     min_factor: float = 1e-2
     """The smallest factor applied (guards a run of lucky innovations)."""
     max_factor: float = 1e6

@@ -47,9 +47,12 @@ from roft_sim.trackers.base import TrackerContext
 from roft_sim.trackers.roft.config import RoftConfig
 from roft_sim.trackers.roft.covariance_scale import (
     BlockScales,
+    detector_noise_prior,
     normalised_innovation_squared,
+    persistent_twist_samples,
     pose_excess_after,
     pose_innovation,
+    restart_pose_excess,
     scaled_estimate_covariance,
     twist_difference,
     twist_noise,
@@ -388,6 +391,7 @@ class RoftTracker:
                 # stored where the replay restarts (before `first`); when it describes `first`
                 # itself, frame `first` is corrected without a prediction (see _advance)
                 self._beliefs[first - 1] = self._initial_belief_from_estimate(self._initial)
+                self._scales[first - 1] = self._start_scales()
                 self._no_predict_frame = first if self._initial.k == first else None
         else:
             earliest = self._earliest_pose()
@@ -405,6 +409,7 @@ class RoftTracker:
                     self._gate_spreads.pop(j, None)
                     self._scales.pop(j, None)
                 self._beliefs[c - 1] = prior
+                self._scales[c - 1] = self._start_scales()
                 return c, prior
             if init is None:
                 return None
@@ -511,7 +516,9 @@ class RoftTracker:
         twist_cov = frame.twist_cov if twist is not None else None
         streak = self._gate_streaks.get(j - 1, 0)
         spread = self._gate_spreads.get(j - 1) or initial_spread(self._config.gate)
-        scales = self._scales.get(j - 1, BlockScales.initial())
+        scales = self._scales.get(j - 1) or self._start_scales()
+        if not no_predict:
+            scales = dataclasses.replace(scales, since_pose_s=scales.since_pose_s + frame.dt_s)
         if twist is not None:
             scales = self._with_twist_change(scales, j, twist, twist_cov)
         poses = sorted(self._poses.get(j, []), key=lambda p: p.detection_id)
@@ -524,11 +531,9 @@ class RoftTracker:
                     belief, twist if i == 0 else None, pose, frame, i == 0, streak, spread
                 )
                 fused = self._decisions.get(pose.detection_id)
-                if (
-                    fused
-                    and pose is not self._init_pose
-                    and pose.detection_id not in self._reinitialising
-                ):
+                if pose is self._init_pose or pose.detection_id in self._reinitialising:
+                    scales = self._restarted(scales, belief)
+                elif fused:
                     scales = self._with_pose_nis(scales, before, pose)
         self._gate_streaks[j] = streak
         self._gate_spreads[j] = spread
@@ -536,6 +541,30 @@ class RoftTracker:
         return belief
 
     # ------------------------------------------------------------------ reported covariance
+    def _pose_noise(self) -> F64:
+        """(6, 6) the configured pose noise ``diag(meas_cov_x, meas_cov_q)``."""
+        pc = self._config.pose
+        return np.diag(np.concatenate([pc.meas_cov_x, pc.meas_cov_q]))
+
+    def _start_scales(self) -> BlockScales:
+        """The scales before the first frame: the pose-noise factors start from the
+        detector-noise prior (``covariance_scale.detector_prior``), or from 1."""
+        if not self._config.covariance_scale.detector_prior:
+            return BlockScales.initial()
+        t, r = detector_noise_prior(initial_spread(self._config.gate), self._config.pose)
+        return BlockScales.initial(t, r)
+
+    def _restarted(self, scales: BlockScales, belief: PoseBelief) -> BlockScales:
+        """``scales`` after a pose (re)initialised the filter (``belief``, after it): the
+        excess becomes that detection's estimated noise minus the filter's pose covariance
+        (``covariance_scale.detector_prior``; zero without), and the time since a pose 0."""
+        cfg = self._config.covariance_scale
+        excess = np.zeros((6, 6))
+        if cfg.detector_prior:
+            factors = scales.pose_noise_factors(cfg)
+            excess = restart_pose_excess(belief.P[6:12, 6:12], self._pose_noise(), factors)
+        return dataclasses.replace(scales, pose_excess=excess, since_pose_s=0.0)
+
     def _with_twist_change(
         self, scales: BlockScales, j: int, twist: F64, twist_cov: F64 | None
     ) -> BlockScales:
@@ -568,6 +597,18 @@ class RoftTracker:
             return scales
         nu, S = pose_innovation(before, pose.p_m, pose.q_wxyz, self._config.pose)
         memory = cfg.memory_measurements
+        if cfg.persistent_twist:
+            # the pose noise as estimated before this pose (covariance matching)
+            noise = self._pose_noise() * np.repeat(scales.pose_noise_factors(cfg), 3)[:, None]
+            v_var, w_var = persistent_twist_samples(
+                nu, before.P[6:12, 6:12], scales.pose_excess, noise, scales.since_pose_s
+            )
+            scales = dataclasses.replace(
+                scales,
+                v_persistent=scales.v_persistent.updated(v_var, 1, memory),
+                w_persistent=scales.w_persistent.updated(w_var, 1, memory),
+            )
+        scales = dataclasses.replace(scales, since_pose_s=0.0)
         if cfg.pose_block == "scale":
             return dataclasses.replace(
                 scales,
@@ -576,8 +617,7 @@ class RoftTracker:
             )
         # covariance matching of the pose noise: E[nu nu^T] = P + excess + R_true
         P = before.P[6:12, 6:12]
-        pc = self._config.pose
-        R = np.diag(np.concatenate([pc.meas_cov_x, pc.meas_cov_q]))
+        R = self._pose_noise()
         excess = scales.pose_excess
         samples = []
         for block in (slice(0, 3), slice(3, 6)):
@@ -591,12 +631,10 @@ class RoftTracker:
         t_scale = scales.t.updated(samples[0], 3, memory)
         r_scale = scales.r.updated(samples[1], 3, memory)
         # the configured pose noise is a floor: the excess stays positive semi-definite
-        factors = np.clip([t_scale.factor, r_scale.factor], 1.0, cfg.max_factor)
+        scales = dataclasses.replace(scales, t=t_scale, r=r_scale)
         return dataclasses.replace(
             scales,
-            t=t_scale,
-            r=r_scale,
-            pose_excess=pose_excess_after(excess, P, R, (float(factors[0]), float(factors[1]))),
+            pose_excess=pose_excess_after(excess, P, R, scales.pose_noise_factors(cfg)),
         )
 
     def _reported(self, estimate: Estimate) -> Estimate:
