@@ -227,6 +227,40 @@ class VelocityKF:
         self.updates = 0
         """Number of corrections so far (0: the twist is the prior, no flow has been used)."""
 
+    def _robust_weights(
+        self, measurement: FlowMeasurement, x_prior: F64, P_prior: F64
+    ) -> tuple[F64, F64, F64, tuple[F64, F64]]:
+        """The per-pixel weights and flow noise of one update from the prior twist.
+
+        Args:
+            measurement: the flow pixels (``J`` (N, 2, 6), ``y_px`` (N, 2) [px]).
+            x_prior: (6,) prior spatial twist ``(v_o [m/s], w [rad/s])``, camera frame.
+            P_prior: (6, 6) its covariance.
+
+        Returns:
+            ``(innovation (N, 2) [px], lik (N,), R (2,) [px^2], (dx, P_post))``: the Laplacian
+            likelihood weights (times the grid-cell weights), the flow noise (``cov_flow``, or
+            the robust spread of the residuals when ``adapt_flow_noise`` and larger), and the
+            update with the configured noise (the residuals' reference).
+        """
+        cfg = self._config
+        J, y = measurement.J, measurement.y_px
+        innovation = y - J @ x_prior  # (N, 2)
+        if cfg.weight_flow:
+            lik = laplacian_likelihood(innovation, cfg.reweighting_pairs)
+        else:
+            lik = np.ones(len(measurement))
+        if measurement.cell_weight is not None:
+            lik = lik * measurement.cell_weight
+        R = self._R
+        J2 = J.reshape(-1, 6)
+        first = self._solve(P_prior, J2, innovation, (lik[:, None] / R[None, :]).reshape(-1))
+        if cfg.adapt_flow_noise:
+            residual = y - J @ (x_prior + first[0])
+            spread = _MAD_TO_SIGMA * np.median(np.abs(residual), axis=0)
+            R = np.maximum(R, spread**2)
+        return innovation, lik, R, first
+
     def _solve(self, P_pred: F64, J2: F64, innovation: F64, weight: F64) -> tuple[F64, F64]:
         JtW = J2.T * weight  # (6, 2N)
         info = np.linalg.inv(P_pred) + JtW @ J2
@@ -270,21 +304,9 @@ class VelocityKF:
         self.updates += 1
         x_pred = self.x
         P_pred = self.P + np.diag(self.q_diag * max(frames, 1e-9))
-        J, y = measurement.J, measurement.y_px
-        innovation = y - J @ x_pred  # (N, 2)
-        if cfg.weight_flow:
-            lik = laplacian_likelihood(innovation, cfg.reweighting_pairs)
-        else:
-            lik = np.ones(len(measurement))
-        if measurement.cell_weight is not None:
-            lik = lik * measurement.cell_weight
-        J2 = J.reshape(-1, 6)
-        R = self._R
-        dx, P_post = self._solve(P_pred, J2, innovation, (lik[:, None] / R[None, :]).reshape(-1))
+        innovation, lik, R, (dx, P_post) = self._robust_weights(measurement, x_pred, P_pred)
+        J2 = measurement.J.reshape(-1, 6)
         if cfg.adapt_flow_noise:
-            residual = y - J @ (x_pred + dx)
-            spread = _MAD_TO_SIGMA * np.median(np.abs(residual), axis=0)
-            R = np.maximum(R, spread**2)
             dx, P_post = self._solve(
                 P_pred, J2, innovation, (lik[:, None] / R[None, :]).reshape(-1)
             )
@@ -355,23 +377,9 @@ class VelocityKF:
         M = np.hstack([eye, -0.5 * dt_s * eye])  # (6, 12): state -> interval-mean twist
         mean_pred = M @ X_pred
         P_mean = M @ P_pred @ M.T
-        J, y = measurement.J, measurement.y_px
-        innovation = y - J @ mean_pred  # (N, 2)
-        if cfg.weight_flow:
-            lik = laplacian_likelihood(innovation, cfg.reweighting_pairs)
-        else:
-            lik = np.ones(len(measurement))
-        if measurement.cell_weight is not None:
-            lik = lik * measurement.cell_weight
-        J2 = J.reshape(-1, 6)
-        R = self._R
-        # the constant model's update of the interval mean, as the prior for the robust flow
-        # noise estimate (same as the constant model's step)
-        d_mean, _ = self._solve(P_mean, J2, innovation, (lik[:, None] / R[None, :]).reshape(-1))
-        if cfg.adapt_flow_noise:
-            residual = y - J @ (mean_pred + d_mean)
-            spread = _MAD_TO_SIGMA * np.median(np.abs(residual), axis=0)
-            R = np.maximum(R, spread**2)
+        # the constant model's weights and flow noise, with the interval mean as the prior
+        innovation, lik, R, _ = self._robust_weights(measurement, mean_pred, P_mean)
+        J2 = measurement.J.reshape(-1, 6)
         self.flow_sigma_px = np.sqrt(R)
         W = (lik[:, None] / R[None, :]).reshape(-1)
         JtW = J2.T * W
