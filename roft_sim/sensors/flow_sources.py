@@ -11,6 +11,9 @@ spec                   source
 ``gt+noise[:<s>]``     :class:`NoisyGroundTruthFlowSource`: gt plus a configurable end-point-error
                        model (:class:`FlowNoiseConfig` defaults; ``:<s>`` sets ``sigma_px``)
 ``dis[:<preset>]``     :class:`DisFlowSource`: OpenCV DIS on the grey rgb images, any stride
+``bm``                 :class:`~roft_sim.sensors.block_matching.BlockMatchingFlowSource`: a
+                       hierarchical block matcher on the grey rgb images, one vector per 4x4
+                       block (NVOF's hardware method; ``nvof-like:bm`` adds its 1/4 px, S10.5)
 ``nvof-like:<inner>``  :class:`NvofLikeFlowSource`: any source as one vector per 4x4 block (its
                        medoid), in NVOF's S10.5 int16, like the reference ``nvof_1_slow`` set
 ``stored:<set>``       :class:`StoredFlowSource`: the sequence's stored flow set (stride 1 only)
@@ -67,6 +70,7 @@ FLOW_SOURCE_SPECS = (
     "gt",
     "gt+noise[:<sigma_px>]",
     "dis[:<preset>]",
+    "bm",
     "nvof-like:<inner>",
     "stored:<set>",
 )
@@ -547,7 +551,7 @@ def make_flow_source(spec: str, *, seed: int) -> FlowSource:
 
     Args:
         spec: ``gt``, ``gt+noise``, ``gt+noise:<sigma_px>``, ``dis``, ``dis:<preset>``,
-            ``nvof-like:<inner spec>`` or ``stored:<set>``.
+            ``bm``, ``nvof-like:<inner spec>`` or ``stored:<set>``.
         seed: seed of stochastic sources (each frame pair draws from
             ``SeedSequence([seed, from_k, to_k])``).
 
@@ -573,6 +577,10 @@ def make_flow_source(spec: str, *, seed: int) -> FlowSource:
         return NoisyGroundTruthFlowSource(FlowNoiseConfig(sigma_px=sigma_px), seed)
     if kind == "dis":
         return DisFlowSource(arg or "medium", seed)
+    if kind == "bm" and not arg:
+        from roft_sim.sensors.block_matching import BlockMatchingFlowSource  # imports this module
+
+        return BlockMatchingFlowSource(seed=seed)
     if kind == "nvof-like" and arg:
         return NvofLikeFlowSource(make_flow_source(arg, seed=seed))
     if kind == "stored" and arg:
