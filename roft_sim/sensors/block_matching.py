@@ -299,7 +299,8 @@ def block_matching_flow(
 
 
 class BlockMatchingFlowSource:
-    """Block-matching flow (:func:`block_matching_flow`) on the grey rgb images (spec ``bm``).
+    """Block-matching flow (:func:`block_matching_flow`) on the grey rgb images (spec ``bm``,
+    or ``bm:<window_px>``).
 
     One float vector per 4x4 block (``grid_px = 4``), every block valid; wrap it as
     ``nvof-like:bm`` for NVOF's 1/4 px and S10.5. Any stride, deterministic (``seed`` is kept
@@ -308,11 +309,15 @@ class BlockMatchingFlowSource:
 
     __slots__ = ("config", "seed")
 
-    name = "bm"
-
     def __init__(self, config: BlockMatchingConfig | None = None, seed: int = 0) -> None:
         self.config = config if config is not None else BlockMatchingConfig()
         self.seed = int(seed)
+
+    @property
+    def name(self) -> str:
+        """``bm``, or ``bm:<window_px>`` for another window than the default."""
+        window = self.config.window_px
+        return "bm" if window == BlockMatchingConfig().window_px else f"bm:{window}"
 
     def flow(self, sequence: Sequence, from_k: int, to_k: int) -> FlowField:
         _check_frames(sequence, from_k, to_k)

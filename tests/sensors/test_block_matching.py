@@ -116,3 +116,14 @@ def test_spec_bm_and_its_nvof_like_form_give_quarter_pixel_vectors() -> None:
     np.testing.assert_array_equal(quantised.flow_px, raw.flow_px)  # already on 1/4 px steps
     np.testing.assert_array_equal(np.rint(raw.flow_px * 4) / 4, raw.flow_px)
     assert np.median(np.abs(raw.flow_px - np.array([2.5, 1.0])), axis=(0, 1)).max() <= 0.25
+
+
+def test_spec_bm_window_and_its_errors() -> None:
+    src = make_flow_source("bm:16", seed=0)
+    assert isinstance(src, BlockMatchingFlowSource)
+    assert src.config.window_px == 16 and src.name == "bm:16"
+    assert make_flow_source("nvof-like:bm", seed=0).name == "nvof-like:bm"
+    with pytest.raises(ConfigError, match="whole number"):
+        make_flow_source("bm:x", seed=0)
+    with pytest.raises(ConfigError, match="window_px"):
+        make_flow_source("bm:7", seed=0)
