@@ -66,7 +66,8 @@ def add_input_arguments(parser: argparse.ArgumentParser, *, sweep: bool = False)
         "--flow",
         default="auto",
         metavar="SPEC",
-        help="flow source: gt, gt+noise, dis[:preset], nvof-like:<inner>, stored:<set>, none, "
+        help="flow source: gt, gt+noise, dis[:preset], bm (block matching, NVOF's method), "
+        "nvof-like:<inner> (e.g. nvof-like:bm), stored:<set>, none, "
         "or auto (default: the stored nvof_1_slow set, else another stored set, else dis)",
     )
     parser.add_argument(

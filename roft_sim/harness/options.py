@@ -60,7 +60,7 @@ class RunOptions:
     faults: FaultConfig = field(default_factory=lambda: load_faults("paper"))
     """The fault configuration (a preset such as ``paper`` or a fault file, loaded)."""
     flow: str = AUTO
-    """Flow source spec (``gt``, ``gt+noise``, ``dis[:preset]``, ``nvof-like:<inner>``,
+    """Flow source spec (``gt``, ``gt+noise``, ``dis[:preset]``, ``bm``, ``nvof-like:<inner>``,
     ``stored:<set>``), ``none`` for no flow, or ``auto``: the sequence's stored
     ``nvof_1_slow`` set, else its first stored set other than ``gt``, else ``dis``."""
     poses: str = AUTO

@@ -11,6 +11,10 @@ spec                   source
 ``gt+noise[:<s>]``     :class:`NoisyGroundTruthFlowSource`: gt plus a configurable end-point-error
                        model (:class:`FlowNoiseConfig` defaults; ``:<s>`` sets ``sigma_px``)
 ``dis[:<preset>]``     :class:`DisFlowSource`: OpenCV DIS on the grey rgb images, any stride
+``bm[:<window_px>]``   :class:`~roft_sim.sensors.block_matching.BlockMatchingFlowSource`: a
+                       hierarchical block matcher on the grey rgb images, one vector per 4x4
+                       block (NVOF's hardware method; ``nvof-like:bm`` adds its 1/4 px, S10.5);
+                       ``:<window_px>`` sets the matching window (default 8)
 ``nvof-like:<inner>``  :class:`NvofLikeFlowSource`: any source as one vector per 4x4 block (its
                        medoid), in NVOF's S10.5 int16, like the reference ``nvof_1_slow`` set
 ``stored:<set>``       :class:`StoredFlowSource`: the sequence's stored flow set (stride 1 only)
@@ -67,6 +71,7 @@ FLOW_SOURCE_SPECS = (
     "gt",
     "gt+noise[:<sigma_px>]",
     "dis[:<preset>]",
+    "bm[:<window_px>]",
     "nvof-like:<inner>",
     "stored:<set>",
 )
@@ -552,7 +557,7 @@ def make_flow_source(spec: str, *, seed: int) -> FlowSource:
 
     Args:
         spec: ``gt``, ``gt+noise``, ``gt+noise:<sigma_px>``, ``dis``, ``dis:<preset>``,
-            ``nvof-like:<inner spec>`` or ``stored:<set>``.
+            ``bm``, ``bm:<window_px>``, ``nvof-like:<inner spec>`` or ``stored:<set>``.
         seed: seed of stochastic sources (each frame pair draws from
             ``SeedSequence([seed, from_k, to_k])``).
 
@@ -578,6 +583,20 @@ def make_flow_source(spec: str, *, seed: int) -> FlowSource:
         return NoisyGroundTruthFlowSource(FlowNoiseConfig(sigma_px=sigma_px), seed)
     if kind == "dis":
         return DisFlowSource(arg or "medium", seed)
+    if kind == "bm":
+        from roft_sim.sensors.block_matching import (  # they import this module
+            BlockMatchingConfig,
+            BlockMatchingFlowSource,
+        )
+
+        if not arg:
+            return BlockMatchingFlowSource(seed=seed)
+        if not arg.isdigit():
+            raise ConfigError(
+                f"flow source {spec!r}: 'bm:<window_px>' needs a whole number of pixels, "
+                "e.g. 'bm:16'"
+            )
+        return BlockMatchingFlowSource(BlockMatchingConfig(window_px=int(arg)), seed=seed)
     if kind == "nvof-like" and arg:
         return NvofLikeFlowSource(make_flow_source(arg, seed=seed))
     if kind == "stored" and arg:
