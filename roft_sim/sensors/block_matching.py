@@ -14,10 +14,10 @@ averaging and variational refinement do. :func:`block_matching_flow` imitates it
    vectors of the four nearest coarse blocks (its parent and the parent's neighbours towards
    it), and searches ``+-search_px`` around it, so a block on a motion boundary can take the
    motion of either side instead of the average;
-4. at the finest level, sub-pixel refinement per axis by the equiangular ("V") fit of the cost
-   at the best integer shift and its two neighbours (Shimizu & Okutomi 2001): SAD grows
-   linearly with the shift near its minimum, so a V, not a parabola (the fit for squared
-   differences), locates it without bias.
+4. at the finest level, sub-pixel refinement by a half- then quarter-pixel search around the
+   best integer shift on a bicubic-interpolated second image (as a video encoder's quarter-pel
+   search; a V or parabola fit of the integer costs was off by up to 0.15 px on integer
+   shifts, so it is not used).
 
 Deterministic (no randomness, no threads in numpy's part). The output is float (not quantised):
 :class:`BlockMatchingFlowSource` (spec ``bm``) gives it on the 4x4 grid, and ``nvof-like:bm``
