@@ -20,10 +20,11 @@ import dataclasses
 
 import numpy as np
 import pytest
+from observation_schedules import Delivery, build_observations
 
 from roft_sim.harness.evaluation import estimate_errors
 from roft_sim.metrics import chi2_bounds, nees
-from roft_sim.records import Estimate, MaskDetection, Observation, PoseDetection
+from roft_sim.records import Estimate, FlowField, Observation
 from roft_sim.testing.fixtures import analytic_sequence
 from roft_sim.trackers.base import TrackerContext
 from roft_sim.trackers.roft import OutlierRejectionConfig, RoftConfig, RoftTracker
@@ -107,13 +108,14 @@ def _noisy_observations(
     the flow (an error of the twist proportional to the motion: it persists while the motion
     does)."""
     rng = np.random.default_rng(seed)
-    obs = []
-    for k in range(len(SEQ)):
+    flows: list[FlowField | None] = []
+    poses, masks = [], []
+    for k in range(len(SEQ)):  # one stream of draws, frame by frame: flow noise, then the pose
         flow = SEQ.flows["gt"][k]
         if flow is not None:
             noise = rng.normal(0.0, 1.0, flow.flow_px.shape).astype(np.float32)
             flow = dataclasses.replace(flow, flow_px=np.float32(flow_gain) * flow.flow_px + noise)
-        poses, masks = (), ()
+        flows.append(flow)
         c = k - 6
         if c >= 0 and c % 6 == 0:
             T = SEQ.gt.T_cam_obj[c].copy()
@@ -121,22 +123,9 @@ def _noisy_observations(
             T[:3, :3] = _rotation(rng.normal(0.0, np.radians(3.0), 3)) @ T[:3, :3]
             if c == 0 and first_pose_off_deg:
                 T[:3, :3] = _rotation(np.radians([first_pose_off_deg, 0.0, 0.0])) @ T[:3, :3]
-            poses = (PoseDetection(T_cam_obj=T, capture_k=c, arrival_k=k, detection_id=c),)
-            masks = (
-                MaskDetection(mask=SEQ.mask(c, "gt"), capture_k=c, arrival_k=k, detection_id=c),
-            )
-        obs.append(
-            Observation(
-                k=k,
-                t_s=k / SEQ.fps,
-                rgb=None,
-                depth_m=SEQ.depth(k),
-                flow=flow,
-                poses=poses,
-                masks=masks,
-            )
-        )
-    return obs
+            poses.append(Delivery(c, k, c, override=T))
+            masks.append(Delivery(c, k, c))
+    return build_observations(SEQ, poses=poses, masks=masks, flows=flows)
 
 
 def _run(seed: int, covariance_scale: CovarianceScaleConfig, **faults: float) -> list[Estimate]:
