@@ -5,11 +5,15 @@ motion, a hand occluder, a moving camera and noisy flow (issue 14; docs/running.
     python benchmarks/bench_robustness.py --medium --out stress-medium --workers 2
     python benchmarks/bench_robustness.py --full --out stress-full --workers 16 \
         --trajectories ../shared/trajectories
+    python benchmarks/bench_robustness.py --holdout --medium --out stress-holdout --workers 2
 
-Reads the shipped ``scenarios/sweeps/stress.toml`` (or ``--config``), renders each sequence once
+Reads the shipped ``scenarios/sweeps/stress.toml`` (or ``--config``; ``--holdout`` reads the
+shipped ``stress_holdout.toml``: captured windows and joints, objects and seeds that neither
+split uses, every fault preset at the medium size; run it once a choice made on TUNING has been
+reported on EVALUATION, never to choose), renders each sequence once
 into ``OUT/data`` (reused by later runs), runs the grid with the sweep machinery into
 ``OUT/grid`` (parallel, resumable: run the same command again to continue), and prints, per
-split (TUNING, then EVALUATION, named), trackers x presets x metrics pooled over sequences,
+split (TUNING, EVALUATION, HOLDOUT, named), trackers x presets x metrics pooled over sequences,
 flows and seeds, per flow source, per sequence, and the verdict line. The report is also written
 to ``OUT/report.md``. Captured sequences need the shared trajectories folder
 (``--trajectories``, else ``$ROFT_SIM_TRAJECTORIES``, else ``../shared/trajectories`` beside the
@@ -31,6 +35,7 @@ from roft_sim.harness.stress import (
     format_stress_report,
     load_stress_config,
     run_stress,
+    shipped_holdout_config,
     shipped_stress_config,
 )
 from roft_sim.render.gl_backend import select_gl_backend
@@ -42,7 +47,13 @@ def main(argv: list[str] | None = None) -> int:
     sizes.add_argument("--quick", action="store_true", help="the quick size (default)")
     sizes.add_argument("--medium", action="store_true", help="the medium size")
     sizes.add_argument("--full", action="store_true", help="the full size")
-    parser.add_argument("--config", type=Path, help="stress file (default: the shipped one)")
+    files = parser.add_mutually_exclusive_group()
+    files.add_argument("--config", type=Path, help="stress file (default: the shipped one)")
+    files.add_argument(
+        "--holdout",
+        action="store_true",
+        help="the shipped held-out file (stress_holdout.toml: sequences neither split uses)",
+    )
     parser.add_argument("--out", type=Path, default=Path("stress-out"), help="output folder")
     parser.add_argument("--trajectories", type=Path, help="shared captured-motion folder")
     parser.add_argument("--workers", type=int, default=1, help="local worker processes")
@@ -51,7 +62,9 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     select_gl_backend(os.environ)
-    config_path = args.config or shipped_stress_config()
+    config_path = args.config or (
+        shipped_holdout_config() if args.holdout else shipped_stress_config()
+    )
     config = load_stress_config(config_path)
     size_name = "full" if args.full else "medium" if args.medium else "quick"
     size = config.full if args.full else config.medium if args.medium else config.quick

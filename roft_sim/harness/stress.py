@@ -5,7 +5,8 @@ A stress file (the shipped one is ``scenarios/sweeps/stress.toml``, found by
 :func:`shipped_stress_config`) names the grid (trackers, flow sources, seeds, the initial
 condition), the scene template (hand occluder, moving camera), the sequences (captured TUM VI
 rooms and CMU hands from the shared trajectories folder, the continuous and bursty synthetic
-profiles), each tagged TUNING or EVALUATION, and three sizes (``quick``, ``medium`` and
+profiles), each tagged TUNING or EVALUATION (or HOLDOUT, in ``stress_holdout.toml``, found by
+:func:`shipped_holdout_config`), and three sizes (``quick``, ``medium`` and
 ``full``).
 
 :func:`run_stress` renders every sequence once into ``<out>/data`` (kept: a second run reuses
@@ -51,6 +52,8 @@ __all__ = [
     "StressResult",
     "Verdict",
     "shipped_stress_config",
+    "shipped_holdout_config",
+    "SPLITS",
     "load_stress_config",
     "stress_scenarios",
     "run_stress",
@@ -63,7 +66,13 @@ __all__ = [
 
 _log = logging.getLogger(__name__)
 
-Split = Literal["tuning", "evaluation"]
+Split = Literal["tuning", "evaluation", "holdout"]
+
+SPLITS: tuple[Split, ...] = ("tuning", "evaluation", "holdout")
+"""The splits in report order: ``tuning`` (defaults may be chosen on it), ``evaluation``
+(reported, never tuned on) and ``holdout`` (``stress_holdout.toml``: windows, joints, objects and
+seeds used by neither, run only to check that a result chosen on TUNING and reported on
+EVALUATION transfers)."""
 
 METRICS: tuple[tuple[str, str, str, bool], ...] = (
     ("add_auc_pct", "ADD-AUC %", ".1f", True),
@@ -95,7 +104,7 @@ class StressSequence:
     name: str
     """Sequence name (unique)."""
     split: Split
-    """``tuning`` or ``evaluation`` (the project-wide split)."""
+    """``tuning``, ``evaluation`` (the project-wide split) or ``holdout`` (:data:`SPLITS`)."""
     motion: Literal["captured", "continuous", "bursty"]
     """Captured motion from the trajectories folder, or a synthetic profile."""
     object: str
@@ -112,8 +121,10 @@ class StressSequence:
     """Captured only: where the window starts in the file [s]."""
 
     def __post_init__(self) -> None:
-        if self.split not in ("tuning", "evaluation"):
-            raise ConfigError(f"sequence {self.name!r}: split must be tuning or evaluation")
+        if self.split not in SPLITS:
+            raise ConfigError(
+                f"sequence {self.name!r}: split {self.split!r} is not one of {', '.join(SPLITS)}"
+            )
         captured = self.motion == "captured"
         if captured != (self.capture is not None and self.format is not None):
             raise ConfigError(
@@ -199,6 +210,13 @@ class StressConfig:
 def shipped_stress_config() -> Path:
     """The shipped stress file, ``<package>/scenarios/sweeps/stress.toml``."""
     return scenarios_dir() / "sweeps" / "stress.toml"
+
+
+def shipped_holdout_config() -> Path:
+    """The shipped held-out stress file, ``<package>/scenarios/sweeps/stress_holdout.toml``:
+    captured windows and joints, objects and seeds that neither split of the stress file uses,
+    every sequence tagged ``holdout``."""
+    return scenarios_dir() / "sweeps" / "stress_holdout.toml"
 
 
 def load_stress_config(path: str | Path) -> StressConfig:
@@ -628,7 +646,7 @@ def format_stress_report(
     ]
     out += [f"Note: {n}" for n in result.notes]
     out.append("")
-    for split in ("tuning", "evaluation"):
+    for split in SPLITS:
         if split not in result.splits:
             continue
         names = result.splits[split]
@@ -653,7 +671,7 @@ def format_stress_report(
         result.scores.default_verdicts,
         result.scores.verdicts,
     ):  # the issue's criterion first
-        for split in ("tuning", "evaluation"):
+        for split in SPLITS:
             if split in verdicts:
                 out.append(verdicts[split].line(subject, baselines))
     return "\n".join(out) + "\n"

@@ -17,12 +17,14 @@ from roft_sim.harness.outputs import FRAME_ERRORS_FILE, save_frame_errors
 from roft_sim.harness.stress import (
     DEFAULT_FLOW,
     StressResult,
+    StressSequence,
     StressSize,
     Verdict,
     format_stress_report,
     load_stress_config,
     run_stress,
     score_stress,
+    shipped_holdout_config,
     shipped_stress_config,
     stress_scenarios,
 )
@@ -61,6 +63,33 @@ def test_shipped_stress_file_covers_the_split_motions_and_flows() -> None:
     assert medium is not None and medium.sequences == () and medium.frames > config.quick.frames
     assert medium.faults == config.quick.faults and medium.flows == (DEFAULT_FLOW,)
     assert len(list_fault_presets()) >= 6
+
+
+def test_shipped_holdout_file_uses_what_neither_split_uses() -> None:
+    """The held-out file: every sequence HOLDOUT, none of the stress file's captured windows or
+    joints, seeds or object-motion pairings, every shipped preset at the medium size."""
+    stress = load_stress_config(shipped_stress_config())
+    holdout = load_stress_config(shipped_holdout_config())
+    assert holdout.template == stress.template and holdout.template.is_file()
+    assert {s.split for s in holdout.sequences} == {"holdout"}
+    assert len(holdout.sequences) >= 6
+    assert {s.motion for s in holdout.sequences} == {"captured", "continuous", "bursty"}
+
+    def window(s: StressSequence) -> tuple[object, ...]:
+        return (s.capture, s.joint, s.start_s)
+
+    used = {window(s) for s in stress.sequences if s.motion == "captured"}
+    assert not used & {window(s) for s in holdout.sequences if s.motion == "captured"}
+    assert not {s.seed for s in stress.sequences} & {s.seed for s in holdout.sequences}
+    pairs = {(s.motion, s.capture, s.object) for s in stress.sequences}
+    assert not pairs & {(s.motion, s.capture, s.object) for s in holdout.sequences}
+    assert holdout.medium is not None and holdout.medium.faults == ()  # every preset
+    assert holdout.trackers == stress.trackers and holdout.baselines == stress.baselines
+
+
+def test_a_split_outside_the_three_is_refused() -> None:
+    with pytest.raises(ConfigError, match="split 'test' is not one of tuning, evaluation"):
+        StressSequence(name="x", split="test", motion="bursty", object="003_cracker_box", seed=0)  # type: ignore[arg-type]
 
 
 def test_scenarios_skip_captured_motion_without_the_shared_folder(tmp_path: Path) -> None:
@@ -207,3 +236,28 @@ def test_small_benchmark_orders_roft_above_the_baselines(tmp_path: Path) -> None
                         f"{preset}: {key} roft {roft[key]:.2f} >= {base} {other[key]:.2f}"
                     )
     assert not losses, "; ".join(losses)
+
+
+def test_holdout_split_gets_its_tables_and_verdict_after_evaluation(tmp_path: Path) -> None:
+    baselines = ["detector-hold", "pose-only-ukf"]
+    errors_m = {"roft": 0.01, "detector-hold": 0.03, "pose-only-ukf": 0.04}
+    cells = [_fake_cell(tmp_path, t, DEFAULT_FLOW, e) for t, e in errors_m.items()]
+    scores = score_stress(
+        cells, tmp_path, {"bvh-002_06": "holdout"}, subject="roft", baselines=baselines
+    )
+    assert scores.default_verdicts["holdout"].wins == ["paper"]
+    result = StressResult(
+        out_dir=tmp_path,
+        size_name="test",
+        trackers=("roft", *baselines),
+        notes=(),
+        splits={"holdout": ["bvh-002_06"]},
+        scores=scores,
+        presets=("paper",),
+        flows=(DEFAULT_FLOW,),
+    )
+    report = format_stress_report(result, subject="roft", baselines=baselines)
+    assert "## HOLDOUT split: bvh-002_06" in report
+    assert "### HOLDOUT sequence bvh-002_06" in report
+    verdict_lines = report.split("## Verdict")[1].strip().splitlines()
+    assert verdict_lines[0].startswith(f"HOLDOUT, default inputs ({DEFAULT_FLOW}): roft beats")
