@@ -17,7 +17,7 @@ from test_roft_tracker import GATED, TINY, _perturbed
 
 from roft_sim.geometry import matrix_from_rotvec, transform_distance, transform_from_rt
 from roft_sim.trackers import create_tracker, get_tracker_spec
-from roft_sim.trackers.roft import PoseGateConfig, RoftTracker
+from roft_sim.trackers.roft import PoseGateConfig, RoftTracker, ablation_config
 from roft_sim.trackers.roft.innovation_gate import (
     InnovationSpread,
     adaptive_gate_test,
@@ -123,6 +123,31 @@ def test_default_adaptive_gate_rejects_a_flip_and_a_jump_the_depth_test_lets_thr
         build_observations(seq, poses=deliveries, masks=masks),
     )
     assert est[18].accepted_pose_ids == (2,) and est[24].accepted_pose_ids == (3,)
+
+
+def test_the_no_outlier_rejection_ablation_fuses_what_the_default_gate_rejects(small_seq):
+    """Table IV's "w/o outlier rej." row of our default is every pose fused: the ablation turns
+    the pose gate off with the depth test (it used to keep the gate, so the row measured the
+    default with one of its two outlier tests and differed from it by about nothing)."""
+    seq = small_seq
+    gt = seq.gt.T_cam_obj
+    deliveries = [
+        Delivery(0, 0, 0),
+        Delivery(6, 12, 1),
+        Delivery(12, 18, 2, _flipped(gt[12])),
+        Delivery(18, 24, 3, _jumped(gt[18])),
+    ]
+    masks = paper_schedule(len(seq), first_id=1000)
+    observations = build_observations(seq, poses=deliveries, masks=masks)
+    est = run(RoftTracker(TINY, make_context(seq)), observations)
+    assert est[18].rejected_pose_ids == (2,) and est[24].rejected_pose_ids == (3,)
+    ablated = ablation_config("no_outlier_rejection", base=TINY)
+    assert not ablated.gate.enable and not ablated.outlier_rejection.enable
+    est = run(RoftTracker(ablated, make_context(seq)), observations)
+    assert est[18].accepted_pose_ids == (2,) and est[24].accepted_pose_ids == (3,)
+    for name in ("no_velocity", "no_pose"):  # the rows that also fuse every pose
+        config = ablation_config(name, base=TINY)
+        assert not config.gate.enable and not config.outlier_rejection.enable
 
 
 def test_adaptive_gate_bound_follows_the_spread_of_accepted_innovations():

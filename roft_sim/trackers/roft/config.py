@@ -602,7 +602,7 @@ class RoftConfig:
 ABLATIONS: dict[str, str] = {
     "full": "ROFT as published",
     "no_pose_sync": "w/o pose sync.: delayed poses fused at the frame they arrive",
-    "no_outlier_rejection": "w/o outlier rej.: every pose is fused",
+    "no_outlier_rejection": "w/o outlier rej.: every pose is fused (no depth test, no pose gate)",
     "no_mask_sync": "w/o segm. sync.: the last received mask is used as it is",
     "no_velocity": "w/o velocity: pose-only measurements (sigma_w = 0.01, cov_q = 0.01, no "
     "outlier rejection, no pose sync.)",
@@ -617,19 +617,26 @@ def ablation_config(name: str, base: RoftConfig | None = None) -> RoftConfig:
 
     Args:
         name: a key of :data:`ABLATIONS`.
-        base: the configuration to modify (default: the reference defaults).
+        base: the configuration to modify (default: ``RoftConfig()``, our default
+            configuration; ``reference_config()`` gives the reference's rows).
 
     Raises:
         ConfigError: unknown ablation name.
     """
     base = base or RoftConfig()
     rep = dataclasses.replace
+    # "no outlier rejection" removes every test that can refuse a pose: the reference's depth
+    # test and, where the base has it (our default), the pose gate
+    fuse_every_pose = {
+        "outlier_rejection": rep(base.outlier_rejection, enable=False),
+        "gate": rep(base.gate, enable=False),
+    }
     if name == "full":
         return base
     if name == "no_pose_sync":
         return rep(base, use_pose_resync=False)
     if name == "no_outlier_rejection":
-        return rep(base, outlier_rejection=rep(base.outlier_rejection, enable=False))
+        return rep(base, **fuse_every_pose)
     if name == "no_mask_sync":
         return rep(base, mask=rep(base.mask, flow_aided=False))
     if name == "no_velocity":
@@ -637,14 +644,14 @@ def ablation_config(name: str, base: RoftConfig | None = None) -> RoftConfig:
             base,
             use_velocity=False,
             use_pose_resync=False,
-            outlier_rejection=rep(base.outlier_rejection, enable=False),
             pose=rep(base.pose, sigma_angular=(0.01, 0.01, 0.01), meas_cov_q=(0.01, 0.01, 0.01)),
+            **fuse_every_pose,
         )
     if name == "no_pose":
         return rep(
             base,
             use_pose=False,
             use_pose_resync=False,
-            outlier_rejection=rep(base.outlier_rejection, enable=False),
+            **fuse_every_pose,
         )
     raise ConfigError(f"unknown ROFT ablation {name!r}; known: {', '.join(ABLATIONS)}")
