@@ -219,15 +219,15 @@ class VelocityKFConfig:
     because the rate follows the flow's coloured errors. ``auto`` (default): both run side by
     side on the same pixels (roft_sim/trackers/roft/velocity_selector.py); the pose UKF gets
     the constant model's interval mean (so the poses are the constant model's), and the
-    REPORTED twist is, per part (linear, angular), the mean of the two models' twists at k
-    weighted by how well each predicted the next flow: each model's prediction of the interval
-    mean against the pixels' own least-squares mean, whitened by its covariance, averaged over
-    ``selection_memory`` updates (``L_c``, ``L_a``); the constant-acceleration weight is
-    ``e / (1 + (L_a / (selection_margin L_c))^selection_sharpness)``, ``e = 1 - (1 -
-    1/selection_memory)^n`` after n scores. Excludes ``midpoint_timing`` and
-    ``adapt_process_noise``. Measured (docs/roft.md, GT inputs, TUNING TUM room1, e_v):
-    320x180 5.42 -> 3.71 cm/s, 640x360 5.67 -> 4.21 cm/s; default inputs, stress medium
-    TUNING: poses unchanged, e_v within 0.06 cm/s, e_w 0.1-0.2 deg/s lower."""
+    REPORTED twist is the mean of the two models' twists at k weighted by how well each
+    predicted the next flow: each model's prediction of the interval mean against the pixels'
+    own least-squares mean, whitened by its covariance, averaged over ``selection_memory``
+    updates (``L_c``, ``L_a``); the constant-acceleration weight is ``e / (1 + (L_a /
+    (selection_margin L_c))^selection_sharpness)``, ``e = 1 - (1 - 1/selection_memory)^n``
+    after n scores. Excludes ``midpoint_timing`` and ``adapt_process_noise``. Measured
+    (docs/roft.md), GT inputs, TUNING TUM room1, e_v: 320x180 5.42 -> 3.53 cm/s, 640x360
+    5.67 -> 4.07 cm/s; default inputs, stress medium TUNING: poses unchanged, e_v 0.01-0.05
+    cm/s and e_w 0.04-0.24 deg/s lower."""
     adapt_twist_noise: bool = True
     """``constant_acceleration``: add to the interval-mean twist's noise the part of its error
     the per-pixel flow noise does not explain, estimated by covariance matching on the
@@ -241,19 +241,20 @@ class VelocityKFConfig:
     selection_memory: float = 30.0
     """``auto``: memory of the running mean of each model's whitened prediction error, and of
     the evidence factor ``e`` that keeps the constant model until the scores have seen about
-    that many updates [updates]. 12 and 20 raised e_v on the stress benchmark's TUNING cells
-    (chaos: 21.5 -> 22.5 cm/s with 12)."""
+    that many updates [updates]. Chosen on TUNING (stress medium, default inputs): 12 and 20
+    raised e_v (chaos 21.5 -> 22.5 cm/s with 12; measured with an earlier per-part weight)."""
     selection_margin: float = 0.7
     """``auto``: the constant-acceleration model gets half the (evidence-scaled) weight when
-    ``L_a = margin L_c``, i.e. it must predict the flow 1/0.7 = 1.4 times better in mean
+    ``L_a = margin L_c``, i.e. when it predicts the flow 1/0.7 = 1.4 times better in mean
     whitened squared error. Chosen on TUNING from the ratio ``L_a / L_c`` (median over frames
-    >= 30): 0.43-0.56 on TUM room1 with ground-truth inputs, 1.2-3.7 with the default inputs
-    (10 % quantile about 1.0). 1 (no margin) gave 0.45 weight where both predict equally well,
-    and the mixed twist was worse than the constant model's (TUNING e_v +0.1 to +1 cm/s)."""
+    >= 30, measured with an earlier per-part weight): 0.43-0.56 on TUM room1 with ground-truth
+    inputs, 1.2-3.7 on the four TUNING sequences with the default inputs (10 % quantile about
+    1.0). Without a margin such equal predictors got half the weight, and their mixed twist
+    was worse than the constant model's."""
     selection_sharpness: float = 6.0
-    """``auto``: exponent ``g`` of the weight's ratio (above); 6 puts the weight at 0.95 for
-    ``L_a / L_c = 0.43`` and 0.10 for ``L_a / L_c = 1`` (12 gave the same TUNING numbers within
-    0.03 cm/s and less of the ground-truth gain)."""
+    """``auto``: exponent ``g`` of the weight's ratio (above); 6 puts the weight (before the
+    evidence factor) at 0.95 for ``L_a / L_c = 0.43`` and 0.10 for ``L_a / L_c = 1``. 12
+    changed the TUNING numbers by less than 0.1 cm/s."""
 
     def __post_init__(self) -> None:
         _check_positive("velocity", "sigma_linear", self.sigma_linear, allow_zero=True)

@@ -814,5 +814,13 @@ class RoftTracker:
 
     @property
     def velocity_belief(self) -> tuple[F64, F64]:
-        """The velocity KF's mean (6,) and covariance (6, 6)."""
+        """The velocity KF's interval-mean twist (6,) (v_o [m/s], w [rad/s], camera frame) and
+        its covariance (6, 6): the pose UKF's velocity measurement."""
         return self._velocity_kf.x.copy(), self._velocity_kf.P.copy()
+
+    @property
+    def reported_twist(self) -> F64:
+        """The velocity filter's twist (6,) (v_o [m/s], w [rad/s], camera frame) at the last
+        frame: ``Estimate.spatial_twist`` once a flow has been used (the interval mean for
+        ``velocity.motion_model = "constant"``, the models' mix for ``auto``)."""
+        return self._velocity_kf.x_frame.copy()
