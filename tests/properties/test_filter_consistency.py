@@ -119,6 +119,7 @@ def test_adaptive_velocity_kf_learns_its_noise_and_stays_consistent():
         noise_reference_width_px=None,
         cov_flow=(0.01, 0.01),
         adapt_process_noise=True,
+        motion_model="constant",
     )
     errors, covs = _velocity_kf_errors(truth, told)
     result = check_error_consistency(errors[:, 10:], covs[:, 10:])

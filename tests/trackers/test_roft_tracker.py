@@ -216,12 +216,31 @@ def test_estimate_layout(tiny_seq):
     d = np.r_[np.ones(6), np.repeat(np.sqrt(np.maximum(f, 1.0)), 3)]
     np.testing.assert_allclose(s.covariance[6:], (e.covariance * np.outer(d, d))[6:], rtol=1e-12)
     assert np.linalg.eigvalsh(s.covariance[:6, :6] - e.covariance[:6, :6]).min() > -1e-15
-    np.testing.assert_array_equal(e.spatial_twist, tracker.velocity_belief[0])
+    np.testing.assert_array_equal(e.spatial_twist, tracker.reported_twist)
     np.testing.assert_array_equal(e.v_obj_mps, tracker.pose_belief.x[0:3])
     assert not est[0].valid or est[0].k == 0
     # frame 0 has no flow: no twist is claimed (velocity.report_unmeasured_twist), then one
     assert est[0].spatial_twist is None
     assert all(x.spatial_twist is not None for x in est[1:])
+
+
+def test_auto_motion_model_leaves_the_poses_to_the_constant_model(tiny_seq):
+    """``velocity.motion_model = "auto"`` hands the pose UKF the constant model's interval mean:
+    the poses and their covariances are the constant model's to the bit; only the reported
+    twist mixes in the constant-acceleration model, whose weight the diagnostics report."""
+    seq = tiny_seq
+    schedule = {"poses": paper_schedule(len(seq)), "masks": paper_schedule(len(seq), first_id=99)}
+    out = {}
+    for model in ("constant", "auto"):
+        cfg = dataclasses.replace(
+            TINY, velocity=dataclasses.replace(TINY.velocity, motion_model=model)
+        )
+        out[model] = run(RoftTracker(cfg, make_context(seq)), build_observations(seq, **schedule))
+    for c, a in zip(out["constant"], out["auto"], strict=True):
+        np.testing.assert_array_equal(a.T_cam_obj, c.T_cam_obj)
+        np.testing.assert_array_equal(a.covariance, c.covariance)
+        assert 0.0 <= a.diagnostics["velocity_weight_accel"] <= 1.0
+        assert "velocity_weight_accel" not in c.diagnostics
 
 
 # ----------------------------------------------------------------- outlier rejection

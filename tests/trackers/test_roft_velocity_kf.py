@@ -225,7 +225,9 @@ def test_process_noise_adapts_to_the_motion():
     J = flow_jacobian(CAM, u, v, rng.uniform(0.4, 1.5, n), 1 / 30)
     q = {}
     for name, step_radps in (("moving", 0.3), ("still", 0.0)):
-        kf = VelocityKF(VelocityKFConfig(weight_flow=False, adapt_process_noise=True))
+        kf = VelocityKF(
+            VelocityKFConfig(weight_flow=False, adapt_process_noise=True, motion_model="constant")
+        )
         twist = np.zeros(6)
         for _ in range(60):
             twist[3:6] += rng.normal(0.0, step_radps, 3)
@@ -256,6 +258,7 @@ def test_midpoint_timing_reports_the_twist_at_the_frame():
             VelocityKFConfig(
                 weight_flow=False,
                 midpoint_timing=mid,
+                motion_model="constant",
                 cov_flow=(1e-6, 1e-6),
                 noise_reference_width_px=None,
                 sigma_linear=(10.0,) * 3,

@@ -205,19 +205,29 @@ class VelocityKFConfig:
     initial prior (``initial_v_mps`` / ``initial_w_radps``, e.g. frame 0, which has no flow):
     the reference writes it. False: None until the filter has used a flow measurement (the
     harness then scores those frames' velocity from nothing: docs/metrics.md)."""
-    motion_model: Literal["constant", "constant_acceleration"] = "constant"
+    motion_model: Literal["constant", "constant_acceleration", "auto"] = "auto"
     """``constant``: the state is one twist, a random walk with ``sigma_linear`` /
     ``sigma_angular`` per frame, and the flow F_k measures it directly (the reference: the
-    interval mean is the twist of frame k). ``constant_acceleration``: the state is the twist AT
-    the frame time and its rate of change (12-D), the rate a random walk (white jerk, spectral
-    densities ``rate_psd_linear`` / ``rate_psd_angular``), and F_k measures the interval mean
-    ``twist_k - rate_k dt / 2`` (exact for a constant rate), so the filter itself estimates the
-    twist at k; the pose UKF still receives the interval mean and its covariance. Replaces
-    ``midpoint_timing`` (which it excludes) and ``adapt_process_noise``. Off by default: with
-    ground-truth inputs it meets e_v <= 3 cm/s on the captured sequences (TUM room1 / room2 /
-    room4: 4.4 / 5.3 / 2.2 -> 2.6 / 2.1 / 1.7 cm/s), with the default inputs it costs ADD-AUC
-    (stress benchmark, paper faults: TUNING 62.8 -> 49.6 %, EVALUATION 62.8 -> 53.4 %);
-    docs/roft.md."""
+    interval mean is the twist of frame k, half a frame late). ``constant_acceleration``: the
+    state is the twist AT the frame time and its rate of change (12-D), the rate a random walk
+    (white jerk, spectral densities ``rate_psd_linear`` / ``rate_psd_angular``), and F_k
+    measures the interval mean ``twist_k - rate_k dt / 2`` (exact for a constant rate), so the
+    filter itself estimates the twist at k; the first flow initialises it (twist = the pixels'
+    interval mean, rate at its prior); the pose UKF receives the interval mean. With
+    ground-truth inputs it meets e_v <= 3 cm/s on TUM room1 at 320x180, with the default
+    (noisy) inputs it costs ADD-AUC (stress benchmark, paper faults, TUNING 62.8 -> 50.3 %),
+    because the rate follows the flow's coloured errors. ``auto`` (default): both run side by
+    side on the same pixels (roft_sim/trackers/roft/velocity_selector.py); the pose UKF gets
+    the constant model's interval mean (so the poses are the constant model's), and the
+    REPORTED twist is the mean of the two models' twists at k weighted by how well each
+    predicted the next flow: each model's prediction of the interval mean against the pixels'
+    own least-squares mean, whitened by its covariance, averaged over ``selection_memory``
+    updates (``L_c``, ``L_a``); the constant-acceleration weight is ``e / (1 + (L_a /
+    (selection_margin L_c))^selection_sharpness)``, ``e = 1 - (1 - 1/selection_memory)^n``
+    after n scores. Excludes ``midpoint_timing`` and ``adapt_process_noise``. Measured
+    (docs/roft.md), GT inputs, TUNING TUM room1, e_v: 320x180 5.42 -> 3.53 cm/s, 640x360
+    5.67 -> 4.07 cm/s; default inputs, stress medium TUNING: poses unchanged, e_v 0.01-0.05
+    cm/s and e_w 0.04-0.24 deg/s lower."""
     adapt_twist_noise: bool = True
     """``constant_acceleration``: add to the interval-mean twist's noise the part of its error
     the per-pixel flow noise does not explain, estimated by covariance matching on the
@@ -228,6 +238,23 @@ class VelocityKFConfig:
     """``constant_acceleration``: initial variance of d(v_o)/dt [(m/s^2)^2]."""
     cov_rate0_angular: float = 1000.0
     """``constant_acceleration``: initial variance of dw/dt [(rad/s^2)^2]."""
+    selection_memory: float = 30.0
+    """``auto``: memory of the running mean of each model's whitened prediction error, and of
+    the evidence factor ``e`` that keeps the constant model until the scores have seen about
+    that many updates [updates]. Chosen on TUNING (stress medium, default inputs): 12 and 20
+    raised e_v (chaos 21.5 -> 22.5 cm/s with 12; measured with an earlier per-part weight)."""
+    selection_margin: float = 0.7
+    """``auto``: the constant-acceleration model gets half the (evidence-scaled) weight when
+    ``L_a = margin L_c``, i.e. when it predicts the flow 1/0.7 = 1.4 times better in mean
+    whitened squared error. Chosen on TUNING from the ratio ``L_a / L_c`` (median over frames
+    >= 30, measured with an earlier per-part weight): 0.43-0.56 on TUM room1 with ground-truth
+    inputs, 1.2-3.7 on the four TUNING sequences with the default inputs (10 % quantile about
+    1.0). Without a margin such equal predictors got half the weight, and their mixed twist
+    was worse than the constant model's."""
+    selection_sharpness: float = 6.0
+    """``auto``: exponent ``g`` of the weight's ratio (above); 6 puts the weight (before the
+    evidence factor) at 0.95 for ``L_a / L_c = 0.43`` and 0.10 for ``L_a / L_c = 1``. 12
+    changed the TUNING numbers by less than 0.1 cm/s."""
 
     def __post_init__(self) -> None:
         _check_positive("velocity", "sigma_linear", self.sigma_linear, allow_zero=True)
@@ -240,19 +267,22 @@ class VelocityKFConfig:
             )
         _check_positive("velocity", "sigma_angular", self.sigma_angular, allow_zero=True)
         _check_positive("velocity", "cov_rate0", (self.cov_rate0_linear, self.cov_rate0_angular))
-        if self.motion_model not in ("constant", "constant_acceleration"):
+        if self.motion_model not in ("constant", "constant_acceleration", "auto"):
             raise ConfigError(
-                f"velocity.motion_model must be 'constant' or 'constant_acceleration', got "
-                f"{self.motion_model!r}"
+                f"velocity.motion_model must be 'constant', 'constant_acceleration' or 'auto', "
+                f"got {self.motion_model!r}"
             )
-        if self.motion_model == "constant_acceleration" and (
-            self.midpoint_timing or self.adapt_process_noise
-        ):
+        if self.motion_model != "constant" and (self.midpoint_timing or self.adapt_process_noise):
             raise ConfigError(
-                "velocity.motion_model = 'constant_acceleration' already estimates the twist at "
+                f"velocity.motion_model = {self.motion_model!r} already estimates the twist at "
                 "the frame with its own process noise; set midpoint_timing and "
-                "adapt_process_noise to false"
+                "adapt_process_noise to false, or motion_model = 'constant' to use them"
             )
+        if not (math.isfinite(self.selection_memory) and self.selection_memory >= 1):
+            raise ConfigError(
+                f"velocity.selection_memory must be >= 1 update, got {self.selection_memory}"
+            )
+        _check_positive("velocity", "selection", (self.selection_margin, self.selection_sharpness))
         _check_positive("velocity", "cov_v0", self.cov_v0)
         _check_positive("velocity", "cov_w0", self.cov_w0)
         _check_positive("velocity", "cov_flow", self.cov_flow)

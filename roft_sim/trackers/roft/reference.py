@@ -68,6 +68,7 @@ def _reference_velocity() -> VelocityKFConfig:
         midpoint_timing=False,  # the flow k-1 -> k is the velocity at k (report 3.2)
         remeasure_on_fresh_mask=False,  # a measured twist is never revised (report 1.3)
         report_unmeasured_twist=True,  # frame 0: the zero twist is written (report 1.3, 3.4)
+        motion_model="constant",  # a random-walk twist, F = I (report 3.1)
     )
 
 
@@ -243,6 +244,12 @@ DEVIATIONS: tuple[Deviation, ...] = (
         "unmeasured_twist",
         "no spatial twist is reported before the velocity KF has used any flow (frame 0)",
         _restore("velocity", "report_unmeasured_twist"),
+    ),
+    Deviation(
+        "adaptive_motion_model",
+        "the reported twist mixes the constant and a constant-acceleration velocity KF, "
+        "weighted by how well each predicted the flow (the UKF keeps the constant model's)",
+        _restore("velocity", "motion_model"),
     ),
 )
 """The deviations in the order the attribution table adds them; applying all of them to

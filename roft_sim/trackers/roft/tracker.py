@@ -82,7 +82,12 @@ from roft_sim.trackers.roft.pose_ukf import (
     estimate_from_belief,
     gate_rejects,
 )
-from roft_sim.trackers.roft.velocity_kf import VelocityKF, flow_measurement
+from roft_sim.trackers.roft.velocity_kf import flow_measurement
+from roft_sim.trackers.roft.velocity_selector import (
+    SelectingVelocityKF,
+    VelocityFilter,
+    make_velocity_filter,
+)
 
 F64 = NDArray[np.float64]
 
@@ -162,7 +167,7 @@ class RoftTracker:
         self._mask_sync = MaskSynchroniser(config.mask, context.intrinsics.shape, self._horizon)
         width = context.intrinsics.width_px
         self._stride = config.velocity.stride(width)
-        self._velocity_kf = VelocityKF(config.velocity, width)
+        self._velocity_kf = make_velocity_filter(config.velocity, width)
         self.reset(None)
 
     @property
@@ -205,7 +210,7 @@ class RoftTracker:
         # velocity.remeasure_on_fresh_mask: per delivered frame, the KF's inputs and its state
         # after the frame; the first frame whose stored twist a re-measurement changed
         self._velocity_inputs: dict[int, _VelocityInput] = {}
-        self._velocity_states: dict[int, VelocityKF] = {}
+        self._velocity_states: dict[int, VelocityFilter] = {}
         self._twists_changed_from: int | None = None
 
     # ------------------------------------------------------------------ per-frame inputs
@@ -224,7 +229,7 @@ class RoftTracker:
 
     def _flow_update(
         self,
-        kf: VelocityKF,
+        kf: VelocityFilter,
         prev: _PreviousFrame | None,
         k: int,
         t_s: float,
@@ -266,7 +271,7 @@ class RoftTracker:
                 pixels = erode_pixels(pixels, radius)
         return _PreviousFrame(k, t_s, pixels, depth_m)
 
-    def _twist_for_ukf(self, kf: VelocityKF, updated: bool) -> tuple[F64 | None, F64 | None]:
+    def _twist_for_ukf(self, kf: VelocityFilter, updated: bool) -> tuple[F64 | None, F64 | None]:
         """The UKF's velocity measurement (None when the KF did not update and stale twists are
         skipped) and the covariance added to its noise (or None)."""
         vcfg = self._config.velocity
@@ -691,6 +696,8 @@ class RoftTracker:
             **{f"poses_dropped_{reason}": n for reason, n in dropped.items()},
             **{f"total_{name}": n for name, n in self._totals.items()},
         }
+        if isinstance(self._velocity_kf, SelectingVelocityKF):
+            diagnostics["velocity_weight_accel"] = self._velocity_kf.weight_accel
         spatial_twist = None
         if cfg.use_flow and (self._velocity_kf.updates > 0 or cfg.velocity.report_unmeasured_twist):
             spatial_twist = self._velocity_kf.x_frame.copy()
@@ -807,5 +814,13 @@ class RoftTracker:
 
     @property
     def velocity_belief(self) -> tuple[F64, F64]:
-        """The velocity KF's mean (6,) and covariance (6, 6)."""
+        """The velocity KF's interval-mean twist (6,) (v_o [m/s], w [rad/s], camera frame) and
+        its covariance (6, 6): the pose UKF's velocity measurement."""
         return self._velocity_kf.x.copy(), self._velocity_kf.P.copy()
+
+    @property
+    def reported_twist(self) -> F64:
+        """The velocity filter's twist (6,) (v_o [m/s], w [rad/s], camera frame) at the last
+        frame: ``Estimate.spatial_twist`` once a flow has been used (the interval mean for
+        ``velocity.motion_model = "constant"``, the models' mix for ``auto``)."""
+        return self._velocity_kf.x_frame.copy()
