@@ -127,7 +127,7 @@ def main(argv: list[str] | None = None) -> None:
     print(f"frames (k, median exact |F| px): {', '.join(f'{k} ({m:.1f})' for k, m in frames)}\n")
     print(
         "| flow | frames | halo outside, rings 1-4 | rings 1-2 behind ; ahead of the motion | "
-        "inside, rings 1-4 | interior residual | interior |f| CV | interior direction std "
+        "inside, rings 1-4 | interior blotches | interior magnitude CV | interior direction std "
         "deg | far background mean | spurious (> 0.2) |"
     )
     print("|---|---|---|---|---|---|---|---|---|---|")
