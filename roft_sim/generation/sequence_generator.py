@@ -43,6 +43,7 @@ from roft_sim.render.ground_truth import RenderedFrame, ground_truth_flow
 from roft_sim.render.scene_renderer import SceneRenderer
 from roft_sim.scenario import Scenario
 from roft_sim.scene.camera_motion import camera_poses
+from roft_sim.sensors.block_matching import BlockMatchingConfig, BlockMatchingFlowSource
 from roft_sim.sensors.flow_sources import (
     DisFlowSource,
     FlowSource,
@@ -193,6 +194,10 @@ def _flow_source(spec: FlowSourceSpec, config: FlowSetConfig, seed: int) -> Flow
     if spec.kind == "dis":
         assert spec.dis_preset is not None
         return _Memoised(DisFlowSource(spec.dis_preset), f"dis:{spec.dis_preset}")
+    if spec.kind == "bm":
+        assert spec.bm_window_px is not None
+        matcher = BlockMatchingConfig(window_px=spec.bm_window_px)
+        return _Memoised(BlockMatchingFlowSource(matcher), f"bm:{spec.bm_window_px}")
     assert spec.inner is not None
     return NvofLikeFlowSource(_flow_source(spec.inner, config, seed))
 

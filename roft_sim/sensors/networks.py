@@ -28,6 +28,7 @@ from typing import Literal
 
 from roft_sim.datasets.frames import FLOW_ENCODINGS, check_set_name
 from roft_sim.errors import ConfigError
+from roft_sim.sensors.block_matching import BlockMatchingConfig
 from roft_sim.sensors.flow_sources import DIS_PRESETS, FlowNoiseConfig
 from roft_sim.sensors.pose_estimator import FAST_YCB_DOPE, PoseEstimatorConfig
 from roft_sim.sensors.segmenter import SegmenterConfig
@@ -43,8 +44,14 @@ __all__ = [
     "DEFAULT_FLOW_SETS",
 ]
 
-GENERATION_FLOW_SOURCES = ("gt", "gt+noise", "dis[:<preset>]", "nvof-like:<inner>")
-"""The flow sources a generated flow set can use (``<inner>`` is any of the first three)."""
+GENERATION_FLOW_SOURCES = (
+    "gt",
+    "gt+noise",
+    "dis[:<preset>]",
+    "bm[:<window_px>]",
+    "nvof-like:<inner>",
+)
+"""The flow sources a generated flow set can use (``<inner>`` is any of the first four)."""
 
 
 def _check_name(kind: str, name: str, *, reserved: tuple[str, ...]) -> None:
@@ -60,10 +67,13 @@ def _check_name(kind: str, name: str, *, reserved: tuple[str, ...]) -> None:
 class FlowSourceSpec:
     """A parsed flow-source string (see :func:`parse_generation_flow_source`)."""
 
-    kind: Literal["gt", "gt+noise", "dis", "nvof-like"]
+    kind: Literal["gt", "gt+noise", "dis", "bm", "nvof-like"]
     """The source."""
     dis_preset: str | None = None
     """OpenCV DIS preset (``kind == "dis"``)."""
+    bm_window_px: int | None = None
+    """Matching window of the block matcher [px] (``kind == "bm"``; default 8,
+    ``roft_sim.sensors.block_matching.BlockMatchingConfig``)."""
     inner: FlowSourceSpec | None = None
     """The source reduced to NVOF's 4x4 grid (``kind == "nvof-like"``)."""
 
@@ -73,8 +83,8 @@ class FlowSourceSpec:
 
 
 def parse_generation_flow_source(spec: str) -> FlowSourceSpec:
-    """Parses a flow-set source: ``gt``, ``gt+noise``, ``dis``, ``dis:<preset>`` or
-    ``nvof-like:<one of those>``.
+    """Parses a flow-set source: ``gt``, ``gt+noise``, ``dis``, ``dis:<preset>``, ``bm``,
+    ``bm:<window_px>`` or ``nvof-like:<one of those>``.
 
     Raises:
         ConfigError: anything else (the message lists the forms).
@@ -90,6 +100,15 @@ def parse_generation_flow_source(spec: str) -> FlowSourceSpec:
                 f"{', '.join(DIS_PRESETS)}"
             )
         return FlowSourceSpec("dis", dis_preset=preset)
+    if kind == "bm":
+        if arg and not arg.isdigit():
+            raise ConfigError(
+                f"flow source {spec!r}: 'bm:<window_px>' needs a whole number of pixels, "
+                "e.g. 'bm:16'"
+            )
+        window_px = int(arg) if arg else BlockMatchingConfig().window_px
+        BlockMatchingConfig(window_px=window_px)  # checks the window
+        return FlowSourceSpec("bm", bm_window_px=window_px)
     if kind == "nvof-like" and arg:
         inner = parse_generation_flow_source(arg)
         if inner.kind == "nvof-like":
@@ -163,9 +182,11 @@ class FlowSetConfig:
     """Flow set name: Fast-YCB ``optical_flow/<set_name>/<k>.float``."""
     source: str
     """``gt`` (exact motion field, with validity), ``gt+noise`` (gt plus the ``noise`` model),
-    ``dis[:ultrafast|fast|medium]`` (OpenCV DIS on the rendered rgb, default preset medium) or
-    ``nvof-like:<one of those>`` (reduced to NVOF 1.0's one vector per 4x4 block, rounded to
-    1/32 px)."""
+    ``dis[:ultrafast|fast|medium]`` (OpenCV DIS on the rendered rgb, default preset medium),
+    ``bm[:<window_px>]`` (block matching on the rendered rgb, one vector per 4x4 block, default
+    window 8 px; ``nvof-like:bm:16`` is the flow closest to Fast-YCB's real NVOF picture,
+    docs/fidelity.md, at about 45 times DIS medium's time) or ``nvof-like:<one of those>``
+    (reduced to NVOF 1.0's one vector per 4x4 block, rounded to 1/4 px)."""
     encoding: Literal["float32", "s10.5"] = "float32"
     """On-disk encoding: ``float32`` (exact) or ``s10.5`` (int16, 1/32 px steps, |F| < 1024 px,
     as NVOF writes; lossy for sources finer than 1/32 px)."""

@@ -188,11 +188,13 @@ def test_format_layout_and_the_independent_fast_ycb_checker(generated):
 
 def test_configured_flow_sources_and_disabled_networks(oracle, scenario, tmp_path):
     """gt+noise == apply_flow_noise(gt, its noise, frame_rng(flow_set_seed, k-1, k));
-    nvof-like:gt == the sensors' NVOF-like reduction of gt; dis:fast == OpenCV DIS fast; a
-    disabled network writes no set."""
+    nvof-like:gt == the sensors' NVOF-like reduction of gt; dis:fast == OpenCV DIS fast;
+    nvof-like:bm:16 == the sensors' block matcher with a 16 px window, reduced; a disabled network
+    writes no set."""
     import dataclasses
 
     from roft_sim.generation.sequence_generator import flow_set_seed
+    from roft_sim.sensors.block_matching import BlockMatchingConfig, BlockMatchingFlowSource
     from roft_sim.sensors.flow_sources import (
         DisFlowSource,
         FlowNoiseConfig,
@@ -211,13 +213,14 @@ def test_configured_flow_sources_and_disabled_networks(oracle, scenario, tmp_pat
             FlowSetConfig(set_name="noisy", source="gt+noise", noise=noise),
             FlowSetConfig(set_name="nvof_gt", source="nvof-like:gt", encoding="s10.5"),
             FlowSetConfig(set_name="dis_fast", source="dis:fast"),
+            FlowSetConfig(set_name="nvof_bm16", source="nvof-like:bm:16", encoding="s10.5"),
         ),
     )
     custom = dataclasses.replace(scenario, networks=networks)
     (result,) = run_generate([custom], tmp_path, format="hdf5").sequences
     seq = open_sequence(result.path)
     assert seq.pose_sets() == () and set(seq.mask_sets()) == {GT_MASK_SET, GT_FULL_MASK_SET}
-    assert set(seq.flow_sets()) == {"noisy", "nvof_gt", "dis_fast"}
+    assert set(seq.flow_sets()) == {"noisy", "nvof_gt", "dis_fast", "nvof_bm16"}
 
     class Gt:  # the oracle's exact flow as a flow source
         name = "gt"
@@ -245,3 +248,6 @@ def test_configured_flow_sources_and_disabled_networks(oracle, scenario, tmp_pat
         np.testing.assert_array_equal(seq.flow(k, "nvof_gt").flow_px, want.flow_px)
         want = DisFlowSource("fast").flow(Frames(), k - 1, k)
         np.testing.assert_array_equal(seq.flow(k, "dis_fast").flow_px, want.flow_px)
+        bm16 = BlockMatchingFlowSource(BlockMatchingConfig(window_px=16))
+        want = NvofLikeFlowSource(bm16).flow(Frames(), k - 1, k)
+        np.testing.assert_array_equal(seq.flow(k, "nvof_bm16").flow_px, want.flow_px)

@@ -144,9 +144,14 @@ def test_flow_source_grammar():
     assert parse_generation_flow_source("dis:fast").dis_preset == "fast"
     spec = parse_generation_flow_source("nvof-like:gt+noise")
     assert spec.kind == "nvof-like" and spec.inner.kind == "gt+noise" and spec.uses("gt+noise")
-    for bad in ("nvof-like", "nvof-like:nvof-like:gt", "stored:nvof_1_slow", "gt:x", ""):
+    assert parse_generation_flow_source("bm").bm_window_px == 8
+    spec = parse_generation_flow_source("nvof-like:bm:16")
+    assert spec.inner.kind == "bm" and spec.inner.bm_window_px == 16
+    for bad in ("nvof-like", "nvof-like:nvof-like:gt", "stored:nvof_1_slow", "gt:x", "", "bm:x"):
         with pytest.raises(ConfigError):
             parse_generation_flow_source(bad)
+    with pytest.raises(ConfigError, match="window_px"):
+        parse_generation_flow_source("bm:7")  # not centred on a 4x4 block
     with pytest.raises(ConfigError, match="flow set name"):
         FlowSetConfig(set_name="../x", source="gt")
 
