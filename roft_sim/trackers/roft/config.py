@@ -547,6 +547,13 @@ class CovarianceScaleConfig:
     since the previous fused pose (the prediction integrates the twist over it). The
     twist-change factor cannot see such errors. False: the velocity blocks are the UKF's
     times the twist-change factor."""
+    twist_change_over_gaps: bool = True
+    """Compare a twist with the last twist measured before it when the frame before has none
+    (a dropped camera frame, or a frame whose flow the velocity KF could not use): the change
+    then spans the gap, ``E[d d^T] = R_k + R_(k-m) + Cov(x_k - x_(k-m))``, conservative by the
+    motion over the m frames. False: only consecutive frames count, and every gap removes the
+    samples around it, so the factor decays towards 1 across the frames that follow a camera
+    fault (measured: docs/roft.md, "Consistency under camera faults")."""
     min_factor: float = 1e-2
     """The smallest factor applied (guards a run of lucky innovations)."""
     max_factor: float = 1e6

@@ -569,10 +569,10 @@ class RoftTracker:
         self, scales: BlockScales, j: int, twist: F64, twist_cov: F64 | None
     ) -> BlockScales:
         """``scales`` with the velocity blocks updated by the change of the twist measurement
-        from frame j-1 to j, normalised by the two measurements' noise (none without a twist
-        at j-1)."""
+        from the previous twist (:meth:`_previous_twist_frame`) to frame j, normalised by the
+        two measurements' noise (none without a previous twist)."""
         cfg = self._config.covariance_scale
-        previous = self._frames.get(j - 1)
+        previous = self._previous_twist_frame(j)
         if not cfg.enable or previous is None or previous.twist is None:
             return scales
         pose_cfg = self._config.pose
@@ -588,6 +588,20 @@ class RoftTracker:
             v=scales.v.updated(normalised_innovation_squared(d[:3], S[:3, :3]), 3, memory),
             w=scales.w.updated(normalised_innovation_squared(d[3:], S[3:, 3:]), 3, memory),
         )
+
+    def _previous_twist_frame(self, j: int) -> _Frame | None:
+        """The frame the twist of frame j is compared with: j-1, or with
+        ``covariance_scale.twist_change_over_gaps`` the last frame before j that had a twist
+        (within the buffered frames), so that dropped camera frames and frames without flow
+        do not starve the twist-change statistic; None when there is none."""
+        previous = self._frames.get(j - 1)
+        if not self._config.covariance_scale.twist_change_over_gaps:
+            return previous
+        i = j - 1
+        while previous is not None and previous.twist is None:
+            i -= 1
+            previous = self._frames.get(i)
+        return previous
 
     def _with_pose_nis(self, scales: BlockScales, before: PoseBelief, pose: _Pose) -> BlockScales:
         """``scales`` with the pose blocks updated by a fused pose's innovation at ``before``
