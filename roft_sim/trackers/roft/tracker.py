@@ -612,8 +612,11 @@ class RoftTracker:
         nu, S = pose_innovation(before, pose.p_m, pose.q_wxyz, self._config.pose)
         memory = cfg.memory_measurements
         if cfg.persistent_twist:
-            # the pose noise as estimated before this pose (covariance matching)
-            noise = self._pose_noise() * np.repeat(scales.pose_noise_factors(cfg), 3)[:, None]
+            # the pose noise the innovation is explained by: the configured one (the rest is
+            # the twist's), or the one estimated before this pose by covariance matching
+            noise = self._pose_noise()
+            if cfg.persistent_twist_noise == "estimated":
+                noise = noise * np.repeat(scales.pose_noise_factors(cfg), 3)[:, None]
             v_var, w_var = persistent_twist_samples(
                 nu, before.P[6:12, 6:12], scales.pose_excess, noise, scales.since_pose_s
             )
