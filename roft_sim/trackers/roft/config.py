@@ -553,13 +553,14 @@ class CovarianceScaleConfig:
     floor of the noise estimate) or ``estimated`` (that times the running pose-noise factors
     as estimated before this pose). The split between pose noise and twist error is not
     identifiable from one innovation per pose, and the pose-noise estimate is made from the
-    same innovations: with ``estimated`` it takes their mean level, so the samples keep only
-    their fluctuation, and a pose outlier that passes the gate (``chaos``) inflates the noise
-    estimate and silences the samples for the next ``memory_measurements`` poses (velocity
-    NEES 24.8 on TUNING tum-room1 ``chaos``; docs/roft.md, "Consistency under camera
-    faults"). ``configured`` gives the twist every part of the innovation the filter's own
-    noise model does not explain (conservative for the velocity blocks; the pose block keeps
-    its own estimate)."""
+    same innovations (starting from the detector prior, ``detector_prior``): with ``estimated``
+    it takes their mean level, so the samples keep only their fluctuation; while the prior is
+    not yet forgotten (few fused poses, as under ``chaos``), or after a pose outlier that
+    passed the gate inflated it, it explains every innovation and the samples are all 0
+    (TUNING tum-room1 ``chaos``: none of 12 fused poses gave a positive angular sample,
+    velocity NEES 24.8; docs/roft.md, "Consistency under camera faults"). ``configured`` gives
+    the twist every part of the innovation the filter's own noise model does not explain
+    (conservative for the velocity blocks; the pose block keeps its own estimate)."""
     twist_change_over_gaps: bool = True
     """Compare a twist with the last twist measured before it when the frame before has none
     (a dropped camera frame, or a frame whose flow the velocity KF could not use): the change
