@@ -591,15 +591,17 @@ class RoftTracker:
 
     def _previous_twist_frame(self, j: int) -> _Frame | None:
         """The frame the twist of frame j is compared with: j-1, or with
-        ``covariance_scale.twist_change_over_gaps`` the last frame before j that had a twist
-        (within the buffered frames), so that dropped camera frames and frames without flow
-        do not starve the twist-change statistic; None when there is none."""
+        ``covariance_scale.twist_change_over_gaps`` the last frame before j that had a twist,
+        at most ``sync.horizon_frames`` back, so that dropped camera frames and frames without
+        flow do not starve the twist-change statistic; None when there is none. The frames are
+        kept that far behind the oldest replayable one (:meth:`_prune`), so a replay finds
+        the same frame as the undelayed run did."""
         previous = self._frames.get(j - 1)
         if not self._config.covariance_scale.twist_change_over_gaps:
             return previous
-        i = j - 1
-        while previous is not None and previous.twist is None:
-            i -= 1
+        for i in range(j - 2, j - 1 - self._horizon, -1):
+            if previous is not None and previous.twist is not None:
+                break
             previous = self._frames.get(i)
         return previous
 
@@ -790,7 +792,8 @@ class RoftTracker:
     def _prune(self, k: int) -> None:
         """Forgets what no pose within the horizon can need any more."""
         oldest = k - self._horizon
-        for j in [j for j in self._frames if j < oldest]:
+        # a replayed frame may look up to a horizon further back (_previous_twist_frame)
+        for j in [j for j in self._frames if j < oldest - self._horizon]:
             del self._frames[j]
         for j in [j for j in self._velocity_inputs if j < oldest]:
             del self._velocity_inputs[j]
