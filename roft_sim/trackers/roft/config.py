@@ -562,10 +562,11 @@ class CovarianceScaleConfig:
     the twist every part of the innovation the filter's own noise model does not explain
     (conservative for the velocity blocks; the pose block keeps its own estimate)."""
     twist_change_over_gaps: bool = True
-    """Compare a twist with the last twist measured before it when the frame before has none
-    (a dropped camera frame, or a frame whose flow the velocity KF could not use): the change
-    then spans the gap, ``E[d d^T] = R_k + R_(k-m) + Cov(x_k - x_(k-m))``, conservative by the
-    motion over the m frames. False: only consecutive frames count, and every gap removes the
+    """Compare a twist with the last twist measured before it (at most
+    ``sync.horizon_frames`` back) when the frame before has none (a dropped camera frame, or a
+    frame whose flow the velocity KF could not use): the change then spans the gap,
+    ``E[d d^T] = R_k + R_(k-m) + Cov(x_k - x_(k-m))``, conservative by the motion over the m
+    frames. False: only consecutive frames count, and every gap removes the
     samples around it, so the factor decays towards 1 across the frames that follow a camera
     fault (measured: docs/roft.md, "Consistency under camera faults")."""
     min_factor: float = 1e-2
