@@ -577,6 +577,28 @@ class CovarianceScaleConfig:
     since the previous fused pose (the prediction integrates the twist over it). The
     twist-change factor cannot see such errors. False: the velocity blocks are the UKF's
     times the twist-change factor."""
+    persistent_twist_noise: Literal["configured", "estimated"] = "configured"
+    """The pose noise a fused pose's innovation is explained by before the rest is sampled as
+    persistent twist error: ``configured`` (``pose.meas_cov_x``, ``pose.meas_cov_q``, the
+    floor of the noise estimate) or ``estimated`` (that times the running pose-noise factors
+    as estimated before this pose). The split between pose noise and twist error is not
+    identifiable from one innovation per pose, and the pose-noise estimate is made from the
+    same innovations (starting from the detector prior, ``detector_prior``): with ``estimated``
+    it takes their mean level, so the samples keep only their fluctuation; while the prior is
+    not yet forgotten (few fused poses, as under ``chaos``), or after a pose outlier that
+    passed the gate inflated it, it explains every innovation and the samples are all 0
+    (TUNING tum-room1 ``chaos``: none of 12 fused poses gave a positive angular sample,
+    velocity NEES 24.8; docs/roft.md, "Consistency under camera faults"). ``configured`` gives
+    the twist every part of the innovation the filter's own noise model does not explain
+    (conservative for the velocity blocks; the pose block keeps its own estimate)."""
+    twist_change_over_gaps: bool = True
+    """Compare a twist with the last twist measured before it (at most
+    ``sync.horizon_frames`` back) when the frame before has none (a dropped camera frame, or a
+    frame whose flow the velocity KF could not use): the change then spans the gap,
+    ``E[d d^T] = R_k + R_(k-m) + Cov(x_k - x_(k-m))``, conservative by the motion over the m
+    frames. False: only consecutive frames count, and every gap removes the
+    samples around it, so the factor decays towards 1 across the frames that follow a camera
+    fault (measured: docs/roft.md, "Consistency under camera faults")."""
     min_factor: float = 1e-2
     """The smallest factor applied (guards a run of lucky innovations)."""
     max_factor: float = 1e6

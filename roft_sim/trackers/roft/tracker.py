@@ -574,10 +574,10 @@ class RoftTracker:
         self, scales: BlockScales, j: int, twist: F64, twist_cov: F64 | None
     ) -> BlockScales:
         """``scales`` with the velocity blocks updated by the change of the twist measurement
-        from frame j-1 to j, normalised by the two measurements' noise (none without a twist
-        at j-1)."""
+        from the previous twist (:meth:`_previous_twist_frame`) to frame j, normalised by the
+        two measurements' noise (none without a previous twist)."""
         cfg = self._config.covariance_scale
-        previous = self._frames.get(j - 1)
+        previous = self._previous_twist_frame(j)
         if not cfg.enable or previous is None or previous.twist is None:
             return scales
         pose_cfg = self._config.pose
@@ -594,6 +594,22 @@ class RoftTracker:
             w=scales.w.updated(normalised_innovation_squared(d[3:], S[3:, 3:]), 3, memory),
         )
 
+    def _previous_twist_frame(self, j: int) -> _Frame | None:
+        """The frame the twist of frame j is compared with: j-1, or with
+        ``covariance_scale.twist_change_over_gaps`` the last frame before j that had a twist,
+        at most ``sync.horizon_frames`` back, so that dropped camera frames and frames without
+        flow do not starve the twist-change statistic; None when there is none. The frames are
+        kept that far behind the oldest replayable one (:meth:`_prune`), so a replay finds
+        the same frame as the undelayed run did."""
+        previous = self._frames.get(j - 1)
+        if not self._config.covariance_scale.twist_change_over_gaps:
+            return previous
+        for i in range(j - 2, j - 1 - self._horizon, -1):
+            if previous is not None and previous.twist is not None:
+                break
+            previous = self._frames.get(i)
+        return previous
+
     def _with_pose_nis(self, scales: BlockScales, before: PoseBelief, pose: _Pose) -> BlockScales:
         """``scales`` with the pose blocks updated by a fused pose's innovation at ``before``
         (the belief before that pose's correction)."""
@@ -603,8 +619,11 @@ class RoftTracker:
         nu, S = pose_innovation(before, pose.p_m, pose.q_wxyz, self._config.pose)
         memory = cfg.memory_measurements
         if cfg.persistent_twist:
-            # the pose noise as estimated before this pose (covariance matching)
-            noise = self._pose_noise() * np.repeat(scales.pose_noise_factors(cfg), 3)[:, None]
+            # the pose noise the innovation is explained by: the configured one (the rest is
+            # the twist's), or the one estimated before this pose by covariance matching
+            noise = self._pose_noise()
+            if cfg.persistent_twist_noise == "estimated":
+                noise = noise * np.repeat(scales.pose_noise_factors(cfg), 3)[:, None]
             v_var, w_var = persistent_twist_samples(
                 nu, before.P[6:12, 6:12], scales.pose_excess, noise, scales.since_pose_s
             )
@@ -780,7 +799,8 @@ class RoftTracker:
     def _prune(self, k: int) -> None:
         """Forgets what no pose within the horizon can need any more."""
         oldest = k - self._horizon
-        for j in [j for j in self._frames if j < oldest]:
+        # a replayed frame may look up to a horizon further back (_previous_twist_frame)
+        for j in [j for j in self._frames if j < oldest - self._horizon]:
             del self._frames[j]
         for j in [j for j in self._velocity_inputs if j < oldest]:
             del self._velocity_inputs[j]
