@@ -135,7 +135,8 @@ def _noisy_observations(
     return build_observations(SEQ, poses=poses, masks=masks, flows=flows)
 
 
-def _run(seed: int, covariance_scale: CovarianceScaleConfig, **faults: float) -> list[Estimate]:
+def _tracker(covariance_scale: CovarianceScaleConfig) -> RoftTracker:
+    """ROFT on ``SEQ`` without the depth test, with ``covariance_scale``; reset."""
     config = RoftConfig(
         outlier_rejection=OutlierRejectionConfig(enable=False),
         covariance_scale=covariance_scale,
@@ -145,6 +146,11 @@ def _run(seed: int, covariance_scale: CovarianceScaleConfig, **faults: float) ->
     )
     tracker = RoftTracker(config, context)
     tracker.reset(None)
+    return tracker
+
+
+def _run(seed: int, covariance_scale: CovarianceScaleConfig, **faults: float) -> list[Estimate]:
+    tracker = _tracker(covariance_scale)
     return [tracker.step(o) for o in _noisy_observations(seed, **faults)]
 
 
@@ -250,18 +256,7 @@ def test_dropped_camera_frames_do_not_starve_the_twist_change_statistic():
     velocity_block, late = slice(6, 12), range(18, len(SEQ))
     runs = {}
     for over_gaps in (True, False):
-        config = RoftConfig(
-            outlier_rejection=OutlierRejectionConfig(enable=False),
-            covariance_scale=CovarianceScaleConfig(twist_change_over_gaps=over_gaps),
-        )
-        context = TrackerContext(
-            intrinsics=SEQ.intrinsics,
-            fps=SEQ.fps,
-            object_model=SEQ.model,
-            rng=np.random.default_rng(0),
-        )
-        tracker = RoftTracker(config, context)
-        tracker.reset(None)
+        tracker = _tracker(CovarianceScaleConfig(twist_change_over_gaps=over_gaps))
         estimates = [tracker.step(o) for o in _observations_with_camera_gaps(0)]
         runs[over_gaps] = _nees(estimates, late, velocity_block)
     (on, poses), (off, poses_off) = runs[True], runs[False]
