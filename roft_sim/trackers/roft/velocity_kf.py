@@ -326,15 +326,15 @@ class VelocityKF:
             # innovation-based covariance matching on the measurement-only estimate x_ls of this
             # interval: E[(x_ls - x)^2] = Q + P + P_ls (F = I), so the sample of Q does not
             # shrink with the filter's own gain (the Sage-Husa form on K nu does, and locks in)
-            info_ls = (J2.T * W) @ J2
-            try:
+            if self.fit is None:  # unobservable interval: keep Q
+                sample = self.q_diag
+            else:
+                m_ls, info_ls = self.fit
                 P_ls = np.linalg.inv(info_ls)
-                d_ls = P_ls @ ((J2.T * W) @ innovation.reshape(-1))
+                d_ls = m_ls - x_pred
                 sample = np.maximum(d_ls**2 - np.diag(self.P) - np.diag(P_ls), 0.0) / max(
                     frames, 1.0
                 )
-            except np.linalg.LinAlgError:  # unobservable interval: keep Q
-                sample = self.q_diag
             a = 1.0 / cfg.adaptation_frames
             floor = self._Q_base * cfg.process_noise_floor
             self.q_diag = np.maximum((1.0 - a) * self.q_diag + a * sample, floor)
