@@ -3,8 +3,8 @@
 :func:`evaluate_run` gives the pose and velocity metrics of one sequence (docs/metrics.md) plus
 the figures that need the fault ledger:
 
-- ``sync``: mean position [cm] and rotation [deg] error in the 3 frames before and from each
-  pose arrival (:func:`~roft_sim.metrics.error_around_arrivals`);
+- ``sync``: mean position [cm], rotation [deg] and angular-velocity [deg/s] error norm in the 3
+  frames before and from each pose arrival (:func:`~roft_sim.metrics.error_around_arrivals`);
 - ``outliers``: how many poses the tracker rejected and how many injected outliers it caught
   (only when outliers were injected or anything was rejected);
 - ``recovery``: frames from the end of each burst of dropped poses until the position error is
@@ -87,7 +87,12 @@ def _arrival_figures(run: SequenceRun, m: SequenceMetrics) -> dict[str, Any]:
     if arrivals.size == 0:
         return {"arrivals": 0}
     out: dict[str, Any] = {"arrivals": int(arrivals.size), "window_frames": ARRIVAL_WINDOW_FRAMES}
-    for key, values in (("t_err_cm", m.t_err_norm_cm), ("a_err_deg", m.a_err_deg)):
+    w_err_norm_dps = np.linalg.norm(m.w_err_dps, axis=1)  # (F,) NaN where no twist was scored
+    for key, values in (
+        ("t_err_cm", m.t_err_norm_cm),
+        ("a_err_deg", m.a_err_deg),
+        ("w_err_dps", w_err_norm_dps),
+    ):
         effect = error_around_arrivals(
             _per_frame(m, values, n), arrivals, window=ARRIVAL_WINDOW_FRAMES
         )

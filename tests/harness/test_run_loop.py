@@ -23,6 +23,7 @@ from roft_sim.faults import load_faults
 from roft_sim.geometry.camera import CameraIntrinsics
 from roft_sim.harness import RunOptions, evaluate_run, run_sequence
 from roft_sim.harness.inputs import WithGroundTruthPoses
+from roft_sim.metrics import error_around_arrivals
 from roft_sim.records import Estimate, FlowField, MaskDetection, ObjectModel, PoseDetection
 from roft_sim.testing.analytic_scene import AnalyticBoxDepthRenderer
 from roft_sim.trackers import TrackerSpec
@@ -213,6 +214,16 @@ def test_roft_runs_with_an_injected_renderer(seq):
     assert all(e.spatial_twist is not None for e in run.estimates[1:])
     assert run.depth_renderer_built  # the outlier test rendered the analytic box
     assert "consistency" in evaluation.figures and "sync" in evaluation.figures
+    # the angular-velocity error around pose arrivals (issue 14's saw-tooth), against the
+    # event-triggered average computed here from the per-frame errors
+    m = evaluation.metrics
+    w_err = np.full(len(seq), np.nan)
+    w_err[m.frame_index] = np.linalg.norm(m.w_err_dps, axis=1)
+    expected = error_around_arrivals(w_err, run.pose_arrival_frames(), window=3)
+    sync = evaluation.figures["sync"]["w_err_dps"]
+    assert sync["before"] == pytest.approx(expected.before_mean)
+    assert sync["after"] == pytest.approx(expected.after_mean)
+    assert np.isfinite(sync["before"]) and np.isfinite(sync["after"])
     # with the same delayed poses, flow bridges the delay better than holding the last pose
     hold = evaluate_run(run_sequence(seq, _options(tracker="detector-hold", poses="gt")))
     assert evaluation.metrics.rmse_t_cm < hold.metrics.rmse_t_cm
