@@ -269,8 +269,8 @@ def test_auto_motion_model_leaves_the_poses_to_the_constant_model(tiny_seq):
     for c, a in zip(out["constant"], out["auto"], strict=True):
         np.testing.assert_array_equal(a.T_cam_obj, c.T_cam_obj)
         np.testing.assert_array_equal(a.covariance, c.covariance)
-        assert 0.0 <= a.diagnostics["velocity_weight_accel"] <= 1.0
-        assert "velocity_weight_accel" not in c.diagnostics
+        assert 0.0 <= a.diagnostics["velocity_weight_accel_linear"] <= 1.0
+        assert "velocity_weight_accel_linear" not in c.diagnostics
 
 
 # ----------------------------------------------------------------- outlier rejection

@@ -54,7 +54,7 @@ def test_auto_weights_the_acceleration_model_on_a_clean_accelerating_stream():
     auto = SelectingVelocityKF(VelocityKFConfig(motion_model="auto"), CAM.width_px)
     plain = VelocityKF(VelocityKFConfig(motion_model="constant"), CAM.width_px)
     reported, _ = _run([auto, plain], lambda k: _twist((k - 0.5) * DT_S), 60, rng, 0.05)
-    assert auto.weight_accel > 0.85
+    assert (auto.weights_accel > 0.85).all()
     lag = np.abs(RATE) * DT_S / 2
     assert (np.abs(reported[-1] - _twist(60 * DT_S)) < 0.25 * lag).all()
     np.testing.assert_array_equal(auto.x, plain.x)
@@ -76,7 +76,7 @@ def test_auto_keeps_the_constant_model_when_the_flow_errors_are_coloured():
         errors.append(error.copy())
     auto = SelectingVelocityKF(VelocityKFConfig(motion_model="auto"), CAM.width_px)
     _run([auto], lambda k: base + errors[k - 1], 80, rng, 0.5)
-    assert auto.weight_accel < 0.15
+    assert (auto.weights_accel < 0.15).all()
     # the reported twist is the constant model's but for that small share
     gap = np.abs(auto.accel.x_frame - auto.constant.x_frame)
     assert (np.abs(auto.x_frame - auto.constant.x_frame) <= 0.15 * gap + 1e-12).all()
@@ -84,11 +84,60 @@ def test_auto_keeps_the_constant_model_when_the_flow_errors_are_coloured():
 
 def test_auto_waits_for_evidence_before_weighting_the_acceleration_model():
     """One score is noise: after the second update (the first both models predicted) the
-    constant-acceleration weight is at most 1 / selection_memory however clean the stream."""
-    rng = np.random.default_rng(4)
+    confidence stays below one half however clean the stream (the prior's pseudo-updates of "no
+    difference"); a consistent advantage is trusted within ten updates."""
+    confidence = {}
+    for frames in (2, 10):
+        auto = SelectingVelocityKF(VelocityKFConfig(motion_model="auto"), CAM.width_px)
+        _run([auto], lambda k: _twist((k - 0.5) * DT_S), frames, np.random.default_rng(4), 0.0)
+        confidence[frames] = auto.confidence
+        assert (auto.weights_accel <= auto.confidence + 1e-12).all()
+    assert confidence[2] < 0.5 < 0.99 < confidence[10]
+
+
+def test_a_sudden_stop_takes_the_weight_from_the_acceleration_model_at_once():
+    """A clean accelerating stream gives the constant-acceleration model the weight; when the
+    motion stops holding its last twist, the constant model predicts the next flow exactly and
+    the other one is off by its rate: the current update's scores move the weights below 0.1
+    in that same update (the running means alone would keep them above 0.85 for many more)."""
+    rng = np.random.default_rng(9)
     auto = SelectingVelocityKF(VelocityKFConfig(motion_model="auto"), CAM.width_px)
-    _run([auto], lambda k: _twist((k - 0.5) * DT_S), 2, rng, 0.0)
-    assert 0.0 <= auto.weight_accel <= 1 / 30 + 1e-12
+    stop = 40
+    _run([auto], lambda k: _twist((min(k, stop) - 0.5) * DT_S), stop, rng, 0.05)
+    assert (auto.weights_accel > 0.85).all()
+    u, v, J = _pixels(np.random.default_rng(10))
+    y = J @ _twist((stop - 0.5) * DT_S) + rng.normal(0.0, 0.05, (len(u), 2))
+    auto.step(FlowMeasurement(y_px=y, J=J, u_px=u, v_px=v), t_s=(stop + 1) * DT_S, dt_s=DT_S)
+    assert (auto.weights_accel < 0.1).all(), auto.weights_accel
+    assert (auto.score[1] < auto.score[0]).all()  # the running means still favour it
+
+
+def test_the_twist_is_mixed_per_part_at_the_decoupling_point():
+    """The pixels all at 1 m depth around the optical axis: the fit's decoupling point is on
+    the axis near that depth (the linear velocity there does not depend on ``w``). With one
+    model's weights set per part, the reported twist has the constant-acceleration model's
+    velocity at that point and the constant model's angular velocity (the oracle: both models'
+    twists moved to the point by ``v + w x c`` by hand)."""
+    rng = np.random.default_rng(8)
+    n = 400
+    u = rng.uniform(220, 420, n).astype(np.int64)
+    v = rng.uniform(140, 340, n).astype(np.int64)
+    J = flow_jacobian(CAM, u, v, np.ones(n), DT_S)
+    auto = SelectingVelocityKF(VelocityKFConfig(motion_model="auto"), CAM.width_px)
+    for k in range(1, 6):
+        y = J @ _twist((k - 0.5) * DT_S) + rng.normal(0.0, 0.2, (n, 2))
+        auto.step(FlowMeasurement(y_px=y, J=J, u_px=u, v_px=v), t_s=k * DT_S, dt_s=DT_S)
+    c = auto.decoupling_point_m
+    assert abs(c[2] - 1.0) < 0.05 and np.hypot(c[0], c[1]) < 0.05
+    auto.weights_accel = np.array([1.0, 0.0])
+    auto._combine()
+    at_c = [
+        np.r_[x[:3] + np.cross(x[3:], c), x[3:]]
+        for x in (auto.constant.x_frame, auto.accel.x_frame)
+    ]
+    reported = np.r_[auto.x_frame[:3] + np.cross(auto.x_frame[3:], c), auto.x_frame[3:]]
+    np.testing.assert_allclose(reported[:3], at_c[1][:3], atol=1e-12)
+    np.testing.assert_allclose(reported[3:], at_c[0][3:], atol=1e-12)
 
 
 def test_constant_acceleration_starts_from_the_first_flow():
@@ -121,3 +170,7 @@ def test_make_velocity_filter_and_the_auto_settings():
         VelocityKFConfig(selection_margin=0.0)
     with pytest.raises(ConfigError, match="selection_memory"):
         VelocityKFConfig(selection_memory=0.5)
+    with pytest.raises(ConfigError, match="selection_prior_updates"):
+        VelocityKFConfig(selection_prior_updates=0.0)
+    with pytest.raises(ConfigError, match="selection"):
+        VelocityKFConfig(selection_log_ratio_clip=-1.0)

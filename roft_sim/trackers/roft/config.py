@@ -221,13 +221,14 @@ class VelocityKFConfig:
     the constant model's interval mean (so the poses are the constant model's), and the
     REPORTED twist is the mean of the two models' twists at k weighted by how well each
     predicted the next flow: each model's prediction of the interval mean against the pixels'
-    own least-squares mean, whitened by its covariance, averaged over ``selection_memory``
-    updates (``L_c``, ``L_a``); the constant-acceleration weight is ``e / (1 + (L_a /
-    (selection_margin L_c))^selection_sharpness)``, ``e = 1 - (1 - 1/selection_memory)^n``
-    after n scores. Excludes ``midpoint_timing`` and ``adapt_process_noise``. Measured
-    (docs/roft.md), GT inputs, TUNING TUM room1, e_v: 320x180 5.42 -> 3.53 cm/s, 640x360
-    5.67 -> 4.07 cm/s; default inputs, stress medium TUNING: poses unchanged, e_v 0.01-0.05
-    cm/s and e_w 0.04-0.24 deg/s lower."""
+    own least-squares mean, moved to the fit's decoupling point and whitened by its covariance,
+    averaged over ``selection_memory`` updates (``L_c``, ``L_a``); the constant-acceleration
+    weight is ``confidence / (1 + (L_a / (selection_margin L_c))^selection_sharpness)``, the
+    confidence from the per-update log ratios (``selection_prior_updates``,
+    ``selection_log_ratio_clip``; velocity_selector.py). Excludes ``midpoint_timing`` and
+    ``adapt_process_noise``. Measured (docs/roft.md, round 6), GT inputs, 320x180 stress
+    sequences, e_v: TUNING TUM room1 5.42 (constant) -> 2.38 cm/s (round 5's selector 3.53);
+    default inputs TUNING: poses unchanged, e_v room1 15.60 -> 13.39 cm/s."""
     adapt_twist_noise: bool = True
     """``constant_acceleration``: add to the interval-mean twist's noise the part of its error
     the per-pixel flow noise does not explain, estimated by covariance matching on the
@@ -239,22 +240,36 @@ class VelocityKFConfig:
     cov_rate0_angular: float = 1000.0
     """``constant_acceleration``: initial variance of dw/dt [(rad/s^2)^2]."""
     selection_memory: float = 30.0
-    """``auto``: memory of the running mean of each model's whitened prediction error, and of
-    the evidence factor ``e`` that keeps the constant model until the scores have seen about
-    that many updates [updates]. Chosen on TUNING (stress medium, default inputs): 12 and 20
-    raised e_v (chaos 21.5 -> 22.5 cm/s with 12; measured with an earlier per-part weight)."""
-    selection_margin: float = 0.7
-    """``auto``: the constant-acceleration model gets half the (evidence-scaled) weight when
-    ``L_a = margin L_c``, i.e. when it predicts the flow 1/0.7 = 1.4 times better in mean
-    whitened squared error. Chosen on TUNING from the ratio ``L_a / L_c`` (median over frames
-    >= 30, measured with an earlier per-part weight): 0.43-0.56 on TUM room1 with ground-truth
-    inputs, 1.2-3.7 on the four TUNING sequences with the default inputs (10 % quantile about
-    1.0). Without a margin such equal predictors got half the weight, and their mixed twist
-    was worse than the constant model's."""
+    """``auto``: memory of the running means of each model's whitened prediction error and of
+    the per-update log ratios behind the confidence [updates]. Chosen on TUNING (stress medium,
+    default inputs, round 5): 12 and 20 raised e_v (chaos 21.5 -> 22.5 cm/s with 12)."""
+    selection_margin: float = 0.9
+    """``auto``: the constant-acceleration model counts as better when ``L_a < margin L_c`` (its
+    mean whitened squared error below ``margin`` times the constant model's); the ratio weight
+    is one half there. Round 5 chose 0.7 with an evidence ramp ``1 - (1 - 1/memory)^n`` in
+    place of the confidence; round 6, with the confidence, chose 0.9 on TUNING (GT inputs and
+    default inputs, four sequences: 0.8 and 0.9 within 0.1 cm/s of each other in summed
+    e_v; docs/roft.md)."""
     selection_sharpness: float = 6.0
-    """``auto``: exponent ``g`` of the weight's ratio (above); 6 puts the weight (before the
-    evidence factor) at 0.95 for ``L_a / L_c = 0.43`` and 0.10 for ``L_a / L_c = 1``. 12
-    changed the TUNING numbers by less than 0.1 cm/s."""
+    """``auto``: exponent ``g`` of the weight's ratio (above); 6 puts the ratio weight at 0.95
+    for ``L_a / L_c = 0.55 margin`` and 0.10 for ``L_a / L_c = 1.44 margin``. 12 changed the
+    TUNING numbers by less than 0.1 cm/s (round 5)."""
+    selection_instant_ratio: float = 4.0
+    """``auto``: each weight is also multiplied by ``1 / (1 + (s_a / (ratio s_c))^g)`` of the
+    current update's scores: half when the constant-acceleration model's current prediction
+    error is this many times the constant model's [dimensionless]. Chosen on TUNING (GT and
+    default inputs, the four 320x180 stress sequences): 2 and 4 gave the same summed e_v + e_w
+    (243.7 / 243.6 cm/s + deg/s against 244.9 without), 4 changes less."""
+    selection_prior_updates: float = 10.0
+    """``auto``: pseudo-updates of "no difference" (log ratio 0, spread ``(clip / 2)^2``) that
+    the confidence starts from [updates]: a consistent advantage needs several updates to
+    outweigh them. 5, 10 and 20 gave TUNING e_v within 0.1 cm/s of each other (docs/roft.md);
+    without the shrinkage the first two or three scores of a start moved the weight to 0.5 on
+    BVH 02_05 (GT inputs, e_v 7.58 -> 9.4 cm/s)."""
+    selection_log_ratio_clip: float = 2.0
+    """``auto``: per-update log ratios ``log(s_a / s_c)`` are clipped to +- this [dimensionless]
+    before they enter the confidence, so a single near-zero error (a model predicting a still
+    object exactly) cannot decide it."""
 
     def __post_init__(self) -> None:
         _check_positive("velocity", "sigma_linear", self.sigma_linear, allow_zero=True)
@@ -282,7 +297,21 @@ class VelocityKFConfig:
             raise ConfigError(
                 f"velocity.selection_memory must be >= 1 update, got {self.selection_memory}"
             )
-        _check_positive("velocity", "selection", (self.selection_margin, self.selection_sharpness))
+        _check_positive(
+            "velocity",
+            "selection",
+            (
+                self.selection_margin,
+                self.selection_sharpness,
+                self.selection_log_ratio_clip,
+                self.selection_instant_ratio,
+            ),
+        )
+        if not (math.isfinite(self.selection_prior_updates) and self.selection_prior_updates > 0):
+            raise ConfigError(
+                "velocity.selection_prior_updates must be > 0 updates, got "
+                f"{self.selection_prior_updates}"
+            )
         _check_positive("velocity", "cov_v0", self.cov_v0)
         _check_positive("velocity", "cov_w0", self.cov_w0)
         _check_positive("velocity", "cov_flow", self.cov_flow)

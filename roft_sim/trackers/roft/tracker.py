@@ -716,7 +716,9 @@ class RoftTracker:
             **{f"total_{name}": n for name, n in self._totals.items()},
         }
         if isinstance(self._velocity_kf, SelectingVelocityKF):
-            diagnostics["velocity_weight_accel"] = self._velocity_kf.weight_accel
+            weights = self._velocity_kf.weights_accel
+            diagnostics["velocity_weight_accel_linear"] = float(weights[0])
+            diagnostics["velocity_weight_accel_angular"] = float(weights[1])
         spatial_twist = None
         if cfg.use_flow and (self._velocity_kf.updates > 0 or cfg.velocity.report_unmeasured_twist):
             spatial_twist = self._velocity_kf.x_frame.copy()
