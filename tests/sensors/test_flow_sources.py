@@ -25,6 +25,7 @@ from roft_sim.sensors.flow_sources import (
     block_mean_flow,
     flow_px_from_s10_5,
     frame_rng,
+    make_dis,
     make_flow_source,
     one_motion_per_block,
     s10_5_from_flow_px,
@@ -191,7 +192,9 @@ def _translating_sequence(du: float, dv: float) -> InMemorySequence:
     )
 
 
-@pytest.mark.parametrize(("preset", "max_median_epe_px"), [("fast", 0.15), ("medium", 0.05)])
+@pytest.mark.parametrize(
+    ("preset", "max_median_epe_px"), [("fast", 0.15), ("medium", 0.05), ("medium4", 0.15)]
+)
 def test_dis_recovers_a_textured_translation(preset, max_median_epe_px):
     du, dv = 2.3, -1.4
     seq = _translating_sequence(du, dv)
@@ -204,6 +207,24 @@ def test_dis_recovers_a_textured_translation(preset, max_median_epe_px):
     np.testing.assert_array_equal(src.flow(seq, 0, 1).flow_px, src.flow(seq, 0, 1).flow_px)
     with pytest.raises(ConfigError, match="unknown DIS preset 'slow'"):
         DisFlowSource("slow")
+
+
+def test_medium4_is_medium_stopped_at_a_quarter_of_the_resolution():
+    medium, quarter = make_dis("medium"), make_dis("medium4")
+    assert (medium.getFinestScale(), quarter.getFinestScale()) == (1, 2)
+    for getter in (
+        "getPatchSize",
+        "getPatchStride",
+        "getGradientDescentIterations",
+        "getVariationalRefinementIterations",
+    ):
+        assert getattr(quarter, getter)() == getattr(medium, getter)(), getter
+    assert make_flow_source("nvof-like:dis:medium4", seed=0).name == "nvof-like:dis:medium4"
+    seq = _translating_sequence(2.3, -1.4)
+    assert not np.array_equal(
+        DisFlowSource("medium4").flow(seq, 0, 1).flow_px,
+        DisFlowSource("medium").flow(seq, 0, 1).flow_px,
+    )
 
 
 @pytest.mark.parametrize("precision_px", [NVOF_PRECISION_PX, 1 / 32])
