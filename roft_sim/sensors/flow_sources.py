@@ -393,7 +393,8 @@ class DisFlowSource:
             cv2.cvtColor(np.ascontiguousarray(sequence.rgb(k)), cv2.COLOR_RGB2GRAY)
             for k in (from_k, to_k)
         ]
-        flow = make_dis(self.preset).calc(grey[0], grey[1], None)  # type: ignore[call-overload]  # None: allocate
+        dis = make_dis(self.preset)
+        flow = dis.calc(grey[0], grey[1], None)  # type: ignore[call-overload]  # None: allocate
         return FlowField(flow_px=flow.astype(np.float32), from_k=from_k, to_k=to_k, grid_px=1)
 
 
@@ -417,9 +418,10 @@ def block_cells(flow_px: F32, grid_px: int) -> F32 | None:
         grid_px: block side g [px].
 
     Returns:
-        (g * g, H / g, W / g, 2) float32 [px], entry ``[i * g + j, r, c]`` = pixel
-        ``(c * g + j, r * g + i)`` (block ``(r, c)``'s row i, column j); None when H or W is
-        not a multiple of g or a vector is not finite (the callers' general path).
+        (g * g, H / g, W / g, 2) float32 [px], entry ``[i * g + j, r, c]`` = the vector at
+        row ``r * g + i``, column ``c * g + j`` of ``flow_px`` (block ``(r, c)``'s row i,
+        column j); None when H or W is not a multiple of g or a vector is not finite (the
+        callers' general path).
     """
     h, w = flow_px.shape[:2]
     g = int(grid_px)
