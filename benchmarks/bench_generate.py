@@ -36,6 +36,11 @@ sequence of the CI cracker-box scenario at 96x72 in-process; flat when frames st
     python benchmarks/bench_generate.py --baseline-ref 33cdec7 c52c313 --skip-memory
     python benchmarks/bench_generate.py --resolutions 640x480 --repeats 1 --skip-memory
     python benchmarks/bench_generate.py --skip-throughput --long-frames 3000
+    python benchmarks/bench_generate.py --resolutions 640x480 --nvof-source nvof-like:dis:medium4
+
+``--nvof-source SPEC`` and ``--msaa N`` change the workload (the ``nvof_1_slow`` set's source, the
+colour pass's samples) for what-if measurements; every tree runs the changed workload, so a
+baseline must know the spec.
 """
 
 from __future__ import annotations
@@ -58,19 +63,36 @@ REPO = Path(__file__).resolve().parents[1]
 
 
 # ------------------------------------------------------------------------ child measurements
-def _scenario(resolution: tuple[int, int]) -> Any:
+def _scenario(
+    resolution: tuple[int, int], nvof_source: str | None = None, msaa: int | None = None
+) -> Any:
+    """The workload at ``resolution``; ``nvof_source`` replaces the ``nvof_1_slow`` set's
+    source and ``msaa`` the colour pass's ``msaa_samples`` (None = the scenario's)."""
     from roft_sim.generation import ScenarioOverrides, shipped_scenarios_dir
     from roft_sim.scenario import load_scenario
 
     scenario = load_scenario(shipped_scenarios_dir() / "fast_ycb" / "003_cracker_box.toml")
-    return ScenarioOverrides(resolution=resolution).apply(scenario)
+    scenario = ScenarioOverrides(resolution=resolution).apply(scenario)
+    if msaa is not None:
+        render = dataclasses.replace(scenario.render, msaa_samples=msaa)
+        scenario = dataclasses.replace(scenario, render=render)
+    if nvof_source is not None:
+        sets = tuple(
+            dataclasses.replace(s, source=nvof_source) if s.set_name == "nvof_1_slow" else s
+            for s in scenario.networks.flow_sets
+        )
+        networks = dataclasses.replace(scenario.networks, flow_sets=sets)
+        scenario = dataclasses.replace(scenario, networks=networks)
+    return scenario
 
 
-def child_render(resolution: tuple[int, int], frames: int, cache: Path) -> float:
+def child_render(
+    resolution: tuple[int, int], frames: int, cache: Path, msaa: int | None = None
+) -> float:
     """render+seg+flow frames/s over ``frames`` frames after one warm-up frame."""
     from roft_sim.render import SceneRenderer, ground_truth_flow
 
-    scenario = _scenario(resolution)
+    scenario = _scenario(resolution, msaa=msaa)
     with SceneRenderer(scenario, cache_dir=cache, segmentation=True) as renderer:
         previous = renderer.render_frame(0)
         start = time.perf_counter()
@@ -82,7 +104,13 @@ def child_render(resolution: tuple[int, int], frames: int, cache: Path) -> float
 
 
 def child_generate(
-    resolution: tuple[int, int], frames: int, workers: int, fmt: str, cache: Path
+    resolution: tuple[int, int],
+    frames: int,
+    workers: int,
+    fmt: str,
+    cache: Path,
+    nvof_source: str | None = None,
+    msaa: int | None = None,
 ) -> tuple[float, float, float]:
     """(steady, wall) frames/s and CPU ms per steady frame (W=1) of one run (module doc)."""
     from roft_sim.generation import GenerationOptions, ScenarioOverrides, generate_dataset
@@ -110,7 +138,7 @@ def child_generate(
     try:
         t0 = time.perf_counter()
         summary = generate_dataset(
-            [_scenario(resolution)],
+            [_scenario(resolution, nvof_source, msaa)],
             out,
             GenerationOptions(**{k: v for k, v in options.items() if k in known}),
             overrides=ScenarioOverrides(frames=frames),
@@ -163,10 +191,13 @@ def memory_child(frames: int) -> None:
 def child_main(spec: dict[str, Any]) -> None:
     resolution = tuple(spec["resolution"])
     cache = Path(spec["cache"])
+    variant = {k: spec[k] for k in ("nvof_source", "msaa") if spec.get(k) is not None}
     if spec["kind"] == "render":
-        result: Any = child_render(resolution, spec["frames"], cache)
+        result: Any = child_render(resolution, spec["frames"], cache, variant.get("msaa"))
     else:
-        result = child_generate(resolution, spec["frames"], spec["workers"], spec["format"], cache)
+        result = child_generate(
+            resolution, spec["frames"], spec["workers"], spec["format"], cache, **variant
+        )
     print("RESULT " + json.dumps(result))
 
 
@@ -219,20 +250,36 @@ def print_row(name: str, medians: dict[str, float], trees: list[Tree]) -> None:
     print(f"{name:<30} {cells} {ratios} {load1():>6.2f}", flush=True)
 
 
+def workload(args: argparse.Namespace) -> str:
+    """The networks and rendering of the workload, as the table's header names them."""
+    if args.nvof_source is None and args.msaa is None:
+        return "default networks"
+    parts = [f"nvof_1_slow = {args.nvof_source or 'default'}"]
+    if args.msaa is not None:
+        parts.append(f"msaa_samples = {args.msaa}")
+    return ", ".join(parts)
+
+
 def throughput(args: argparse.Namespace, trees: list[Tree]) -> None:
     now = trees[-1].label
     heads = " ".join(f"{t.label:>9}" for t in trees)
     print(
         f"{os.cpu_count()} CPUs, load average (1, 5, 15 min) at start "
-        f"{', '.join(f'{x:.2f}' for x in os.getloadavg())}; fast_ycb 003_cracker_box, default "
-        f"networks, {args.format}; medians over {args.repeats} interleaved runs [frames/s]"
+        f"{', '.join(f'{x:.2f}' for x in os.getloadavg())}; fast_ycb 003_cracker_box, "
+        f"{workload(args)}, {args.format}; medians over {args.repeats} interleaved runs "
+        "[frames/s]"
     )
     ratios = " ".join(f"{'/' + t.label:>8}" for t in trees[:-1])
     print(f"{'':<30} {heads} {ratios} {'load1':>6}")
     for text in args.resolutions:
         w, h = (int(v) for v in text.lower().split("x"))
         n = args.frames or (48 if w * h <= 640 * 480 else 24)
-        base = {"resolution": [w, h], "format": args.format}
+        base = {
+            "resolution": [w, h],
+            "format": args.format,
+            "nvof_source": args.nvof_source,
+            "msaa": args.msaa,
+        }
         print(f"-- {text}, N = {n}")
         for tree in trees:  # fill each tree's cache (object and scene textures): unmeasured
             run_child(tree, {**base, "kind": "generate", "frames": 2, "workers": 1})
@@ -305,6 +352,14 @@ def main() -> None:
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument(
         "--baseline-ref", nargs="+", default=[], help="git commits to measure side by side"
+    )
+    p.add_argument(
+        "--nvof-source",
+        help="what-if: source of the nvof_1_slow set (e.g. nvof-like:dis:medium4); every tree "
+        "runs it, so a baseline must know it",
+    )
+    p.add_argument(
+        "--msaa", type=int, choices=(0, 2, 4, 8, 16), help="what-if: the colour pass's samples"
     )
     p.add_argument("--short-frames-memory", type=int, default=150)
     p.add_argument("--long-frames", type=int, default=3000)

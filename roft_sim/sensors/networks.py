@@ -182,7 +182,9 @@ class FlowSetConfig:
     """Flow set name: Fast-YCB ``optical_flow/<set_name>/<k>.float``."""
     source: str
     """``gt`` (exact motion field, with validity), ``gt+noise`` (gt plus the ``noise`` model),
-    ``dis[:ultrafast|fast|medium]`` (OpenCV DIS on the rendered rgb, default preset medium),
+    ``dis[:ultrafast|fast|medium|medium4]`` (OpenCV DIS on the rendered rgb, default preset
+    medium; medium4 = medium stopped at 1/4 resolution, 4 times cheaper, less accurate:
+    docs/generate.md, "Round 6"),
     ``bm[:<window_px>]`` (block matching on the rendered rgb, one vector per 4x4 block, default
     window 8 px; ``nvof-like:bm:16`` is the flow closest to Fast-YCB's real NVOF picture,
     docs/fidelity.md, at about 45 times DIS medium's time) or ``nvof-like:<one of those>``

@@ -21,9 +21,11 @@ from roft_sim.sensors.flow_sources import (
     NoisyGroundTruthFlowSource,
     NvofLikeFlowSource,
     StoredFlowSource,
+    block_cells,
     block_mean_flow,
     flow_px_from_s10_5,
     frame_rng,
+    make_dis,
     make_flow_source,
     one_motion_per_block,
     s10_5_from_flow_px,
@@ -190,7 +192,9 @@ def _translating_sequence(du: float, dv: float) -> InMemorySequence:
     )
 
 
-@pytest.mark.parametrize(("preset", "max_median_epe_px"), [("fast", 0.15), ("medium", 0.05)])
+@pytest.mark.parametrize(
+    ("preset", "max_median_epe_px"), [("fast", 0.15), ("medium", 0.05), ("medium4", 0.15)]
+)
 def test_dis_recovers_a_textured_translation(preset, max_median_epe_px):
     du, dv = 2.3, -1.4
     seq = _translating_sequence(du, dv)
@@ -203,6 +207,24 @@ def test_dis_recovers_a_textured_translation(preset, max_median_epe_px):
     np.testing.assert_array_equal(src.flow(seq, 0, 1).flow_px, src.flow(seq, 0, 1).flow_px)
     with pytest.raises(ConfigError, match="unknown DIS preset 'slow'"):
         DisFlowSource("slow")
+
+
+def test_medium4_is_medium_stopped_at_a_quarter_of_the_resolution():
+    medium, quarter = make_dis("medium"), make_dis("medium4")
+    assert (medium.getFinestScale(), quarter.getFinestScale()) == (1, 2)
+    for getter in (
+        "getPatchSize",
+        "getPatchStride",
+        "getGradientDescentIterations",
+        "getVariationalRefinementIterations",
+    ):
+        assert getattr(quarter, getter)() == getattr(medium, getter)(), getter
+    assert make_flow_source("nvof-like:dis:medium4", seed=0).name == "nvof-like:dis:medium4"
+    seq = _translating_sequence(2.3, -1.4)
+    assert not np.array_equal(
+        DisFlowSource("medium4").flow(seq, 0, 1).flow_px,
+        DisFlowSource("medium").flow(seq, 0, 1).flow_px,
+    )
 
 
 @pytest.mark.parametrize("precision_px", [NVOF_PRECISION_PX, 1 / 32])
@@ -389,6 +411,12 @@ def test_block_mean_flow_is_bit_identical_to_the_reduction(shape, holes):
         assert mean.dtype == np.float64 and mean.shape == want_mean.shape
         np.testing.assert_array_equal(valid, want_valid)
         np.testing.assert_array_equal(mean, want_mean)
+        cells = block_cells(flow, 4)
+        assert (cells is None) == (holes or shape != (48, 64))
+        if cells is not None:  # the shared copy adds in the same order: the same bits
+            assert cells.shape == (16, 12, 16, 2) and cells.flags.c_contiguous
+            np.testing.assert_array_equal(cells[1 * 4 + 2, 3, 5], flow[3 * 4 + 1, 5 * 4 + 2])
+            np.testing.assert_array_equal(block_mean_flow(flow, 4, cells=cells)[0], want_mean)
         if holes:
             assert not valid[:2, :2].any() and (mean[:2, :2] == 0).all()
 
@@ -422,3 +450,20 @@ def test_one_motion_per_block_matches_a_block_by_block_oracle(shape):
     assert (np.abs(got[..., 0] - 2.0) < 0.3).sum() + (np.abs(got[..., 0] + 3.0) < 0.3).sum() == int(
         valid.sum()
     )
+
+
+def test_one_motion_per_block_with_shared_cells_gives_the_same_blocks():
+    """The NVOF-like source computes :func:`block_cells` once for the mean and the spread: the
+    blocks are those of the two functions on their own (a motion boundary, divisible size)."""
+    rng = np.random.default_rng(12)
+    h, w, g = 32, 48, 4
+    flow = np.zeros((h, w, 2), dtype=np.float32)
+    flow[..., 0] = np.where(np.arange(w)[None, :] < w // 2 + 1, 2.0, -3.0)
+    flow += rng.normal(scale=0.05, size=flow.shape).astype(np.float32)
+    cells = block_cells(flow, g)
+    assert cells is not None
+    mean, _ = block_mean_flow(flow, g)
+    want = one_motion_per_block(flow, mean, g, 0.25)
+    shared_mean, _ = block_mean_flow(flow, g, cells=cells)
+    np.testing.assert_array_equal(shared_mean, mean)
+    np.testing.assert_array_equal(one_motion_per_block(flow, mean, g, 0.25, cells=cells), want)
