@@ -222,13 +222,15 @@ class VelocityKFConfig:
     REPORTED twist is the mean of the two models' twists at k weighted by how well each
     predicted the next flow: each model's prediction of the interval mean against the pixels'
     own least-squares mean, moved to the fit's decoupling point and whitened by its covariance,
-    averaged over ``selection_memory`` updates (``L_c``, ``L_a``); the constant-acceleration
-    weight is ``confidence / (1 + (L_a / (selection_margin L_c))^selection_sharpness)``, the
+    averaged over ``selection_memory`` updates (``L_c``, ``L_a``, per part: the linear
+    velocity at the decoupling point, the angular velocity); each part's constant-acceleration
+    weight is ``confidence / (1 + (L_a / (selection_margin L_c))^selection_sharpness)`` times
+    the same function of the current update's scores (``selection_instant_ratio``), the
     confidence from the per-update log ratios (``selection_prior_updates``,
     ``selection_log_ratio_clip``; velocity_selector.py). Excludes ``midpoint_timing`` and
     ``adapt_process_noise``. Measured (docs/roft.md, round 6), GT inputs, 320x180 stress
-    sequences, e_v: TUNING TUM room1 5.42 (constant) -> 2.38 cm/s (round 5's selector 3.53);
-    default inputs TUNING: poses unchanged, e_v room1 15.60 -> 13.39 cm/s."""
+    sequences, e_v: TUNING TUM room1 5.42 (constant) -> 2.39 cm/s (round 5's selector 3.53);
+    default inputs TUNING: poses unchanged, e_v room1 15.60 -> 12.88 cm/s."""
     adapt_twist_noise: bool = True
     """``constant_acceleration``: add to the interval-mean twist's noise the part of its error
     the per-pixel flow noise does not explain, estimated by covariance matching on the
@@ -252,7 +254,7 @@ class VelocityKFConfig:
     e_v; docs/roft.md)."""
     selection_sharpness: float = 6.0
     """``auto``: exponent ``g`` of the weight's ratio (above); 6 puts the ratio weight at 0.95
-    for ``L_a / L_c = 0.55 margin`` and 0.10 for ``L_a / L_c = 1.44 margin``. 12 changed the
+    for ``L_a / L_c = 0.61 margin`` and 0.10 for ``L_a / L_c = 1.44 margin``. 12 changed the
     TUNING numbers by less than 0.1 cm/s (round 5)."""
     selection_instant_ratio: float = 4.0
     """``auto``: each weight is also multiplied by ``1 / (1 + (s_a / (ratio s_c))^g)`` of the
@@ -265,7 +267,7 @@ class VelocityKFConfig:
     the confidence starts from [updates]: a consistent advantage needs several updates to
     outweigh them. 5, 10 and 20 gave TUNING e_v within 0.1 cm/s of each other (docs/roft.md);
     without the shrinkage the first two or three scores of a start moved the weight to 0.5 on
-    BVH 02_05 (GT inputs, e_v 7.58 -> 9.4 cm/s)."""
+    BVH 02_05 (GT inputs, e_v 7.58 -> 9.2-10.3 cm/s)."""
     selection_log_ratio_clip: float = 2.0
     """``auto``: per-update log ratios ``log(s_a / s_c)`` are clipped to +- this [dimensionless]
     before they enter the confidence, so a single near-zero error (a model predicting a still
