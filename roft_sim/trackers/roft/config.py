@@ -156,6 +156,17 @@ class VelocityKFConfig:
     mask_erosion_max_removed: float = 0.5
     """... reduced until at most this fraction of the mask's pixels is removed, so a small or
     thin mask is never eaten."""
+    midpoint_jacobian: bool = True
+    """Evaluate the flow Jacobian (paper eq. 9) of each pixel half the pixels' median
+    displacement further, ``(u, v) + median(F) / 2``, with the depth of frame k-1: the
+    instantaneous model then describes the finite flow of the interval to second order in the
+    region's displacement (at 25 px per frame the first-order model's cross terms are
+    comparable to the divergence that carries the motion in depth). The median, not each
+    pixel's own flow: a noisy or outlying vector must not move the point where its own model is
+    evaluated (per-pixel midpoints cost up to 6 ADD-AUC points under the camera-drops preset's
+    flow noise on TUNING). False: at the pixel of frame k-1 (the reference). Chosen on TUNING
+    (docs/roft.md, round 6): GT inputs TUM room1 640x360 ADD-AUC 88.9 -> 91.1 %, e_v 3.63 ->
+    2.54 cm/s."""
     depth_band_m: float | None = 0.15
     """Use only pixels whose depth is within this distance of the median depth of the sampled
     mask pixels [m]: background that a propagated mask has picked up (a trail of points left

@@ -60,6 +60,7 @@ def _reference_velocity() -> VelocityKFConfig:
         min_pixels=3,  # observability minimum, hard-coded (report 7.3)
         mask_erosion_px=0,  # the flow is read on the whole mask of k-1 (report 3.2)
         depth_band_m=None,  # only 0 < D < depth_maximum (report 3.2)
+        midpoint_jacobian=False,  # eq. 9 at the pixel of frame k-1 (report 3.2)
         adapt_flow_noise=False,  # fixed R (report 3.3)
         independent_pixels_per_cell=False,  # every sampled pixel is one measurement (report 3.4)
         adapt_process_noise=False,  # fixed Q per step (report 3.1)
@@ -190,6 +191,11 @@ DEVIATIONS: tuple[Deviation, ...] = (
         "depth_band",
         "flow pixels more than 15 cm in depth from the mask's median depth are not used",
         _restore("velocity", "depth_band_m"),
+    ),
+    Deviation(
+        "midpoint_jacobian",
+        "each pixel's flow Jacobian is evaluated at the midpoint of its measured displacement",
+        _restore("velocity", "midpoint_jacobian"),
     ),
     Deviation(
         "resolution_scaling",

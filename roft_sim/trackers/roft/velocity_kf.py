@@ -95,7 +95,9 @@ def flow_measurement(
     *,
     stride: int | None = None,
 ) -> FlowMeasurement:
-    """Builds the flow measurement from the mask and depth of frame k-1 and the flow F_k.
+    """Builds the flow measurement from the mask and depth of frame k-1 and the flow F_k
+    (the Jacobian at each pixel of k-1, or half the pixels' median displacement further with
+    ``config.midpoint_jacobian``).
 
     Args:
         pixels: mask of frame k-1; every ``config.subsampling_stride``-th pixel (row-major list)
@@ -126,9 +128,14 @@ def flow_measurement(
             (v // g) * (w // g + 1) + u // g, return_inverse=True, return_counts=True
         )
         cell_weight = 1.0 / counts[inverse].astype(np.float64)
+    if config.midpoint_jacobian and u.size:  # half the median displacement (VelocityKFConfig)
+        shift = 0.5 * np.median(y, axis=0)  # (2,) [px]
+        at_u, at_v = u + shift[0], v + shift[1]
+    else:
+        at_u, at_v = u.astype(np.float64), v.astype(np.float64)
     return FlowMeasurement(
         y_px=y,
-        J=flow_jacobian(intrinsics, u, v, z, dt_s),
+        J=flow_jacobian(intrinsics, at_u, at_v, z, dt_s),
         u_px=u,
         v_px=v,
         cell_weight=cell_weight,

@@ -57,6 +57,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.special import ndtr
 
+from roft_sim.geometry.so3 import skew
 from roft_sim.trackers.roft.config import VelocityKFConfig
 from roft_sim.trackers.roft.velocity_kf import FlowMeasurement, VelocityKF
 
@@ -211,7 +212,7 @@ def _decoupling_point(cov: F64) -> F64:
 def _point_shift(c: F64) -> F64:
     """(6, 6) ``T`` with ``T (v_o, w) = (v_o + w x c, w)``: the twist at point ``c`` [m]."""
     T = np.eye(6)
-    T[:3, 3:] = -np.array([[0.0, -c[2], c[1]], [c[2], 0.0, -c[0]], [-c[1], c[0], 0.0]])
+    T[:3, 3:] = -skew(c)  # w x c = -[c]_x w
     return T
 
 
