@@ -84,8 +84,11 @@ REFERENCE_NOISE = {
     "noise_reference_width_px": None,
     "adapt_flow_noise": False,
     "adapt_process_noise": False,
+    "midpoint_jacobian": False,
 }
-"""The reference's fixed Q and R, as given (the filter's model is then the truth's)."""
+"""The reference's fixed Q and R, as given, and its first-order flow model at the pixel of k-1
+(the synthetic flow above is drawn from exactly that model: the filter's model is then the
+truth's)."""
 
 EXACT_KF = VelocityKFConfig(weight_flow=False, subsampling_stride=5, **REFERENCE_NOISE)
 
@@ -120,6 +123,7 @@ def test_adaptive_velocity_kf_learns_its_noise_and_stays_consistent():
         cov_flow=(0.01, 0.01),
         adapt_process_noise=True,
         motion_model="constant",
+        midpoint_jacobian=False,  # the truth's flow model (above)
     )
     errors, covs = _velocity_kf_errors(truth, told)
     result = check_error_consistency(errors[:, 10:], covs[:, 10:])
