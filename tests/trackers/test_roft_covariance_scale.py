@@ -28,6 +28,7 @@ import numpy as np
 import pytest
 from observation_schedules import Delivery, build_observations
 
+from roft_sim.geometry.so3 import matrix_from_rotvec
 from roft_sim.harness.evaluation import estimate_errors
 from roft_sim.metrics import chi2_bounds, nees
 from roft_sim.records import Estimate, FlowField, Observation
@@ -98,11 +99,13 @@ def test_pose_excess_is_the_joseph_form_of_the_filters_gain():
 SEQ = analytic_sequence(n_frames=36, width_px=320, height_px=240)
 
 
-def _rotation(rotvec: np.ndarray) -> np.ndarray:
-    angle = float(np.linalg.norm(rotvec))
-    k = rotvec / angle
-    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
+def _noisy_pose(c: int, rng: np.random.Generator) -> np.ndarray:
+    """(4, 4) the true pose of frame ``c`` with 1 cm and 3 deg of Gaussian noise (translation
+    drawn first, then the rotation vector)."""
+    T = SEQ.gt.T_cam_obj[c].copy()
+    T[:3, 3] += rng.normal(0.0, 0.01, 3)
+    T[:3, :3] = matrix_from_rotvec(rng.normal(0.0, np.radians(3.0), 3)) @ T[:3, :3]
+    return T
 
 
 def _noisy_observations(
@@ -125,11 +128,11 @@ def _noisy_observations(
         flows.append(flow)
         c = k - 6
         if c >= 0 and c % 6 == 0:
-            T = SEQ.gt.T_cam_obj[c].copy()
-            T[:3, 3] += rng.normal(0.0, 0.01, 3)
-            T[:3, :3] = _rotation(rng.normal(0.0, np.radians(3.0), 3)) @ T[:3, :3]
+            T = _noisy_pose(c, rng)
             if c == off_capture_k and first_pose_off_deg:
-                T[:3, :3] = _rotation(np.radians([first_pose_off_deg, 0.0, 0.0])) @ T[:3, :3]
+                T[:3, :3] = (
+                    matrix_from_rotvec(np.radians([first_pose_off_deg, 0.0, 0.0])) @ T[:3, :3]
+                )
             poses.append(Delivery(c, k, c, override=T))
             masks.append(Delivery(c, k, c))
     return build_observations(SEQ, poses=poses, masks=masks, flows=flows)
@@ -240,9 +243,7 @@ def _observations_with_camera_gaps(seed: int) -> list[Observation]:
         flows.append(flow)
         c = k - 6
         if c >= 0 and c % 6 == 0:
-            T = SEQ.gt.T_cam_obj[c].copy()
-            T[:3, 3] += rng.normal(0.0, 0.01, 3)
-            T[:3, :3] = _rotation(rng.normal(0.0, np.radians(3.0), 3)) @ T[:3, :3]
+            T = _noisy_pose(c, rng)
             poses.append(Delivery(c, k, c, override=T))
             masks.append(Delivery(c, k, c))
     dropped = [k for k in range(len(SEQ)) if k % 3 == 1]

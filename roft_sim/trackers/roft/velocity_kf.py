@@ -128,14 +128,12 @@ def flow_measurement(
             (v // g) * (w // g + 1) + u // g, return_inverse=True, return_counts=True
         )
         cell_weight = 1.0 / counts[inverse].astype(np.float64)
+    shift = np.zeros(2)  # where the Jacobian is evaluated, from each pixel of k-1 [px]
     if config.midpoint_jacobian and u.size:  # half the median displacement (VelocityKFConfig)
-        shift = 0.5 * np.median(y, axis=0)  # (2,) [px]
-        at_u, at_v = u + shift[0], v + shift[1]
-    else:
-        at_u, at_v = u.astype(np.float64), v.astype(np.float64)
+        shift = 0.5 * np.median(y, axis=0)
     return FlowMeasurement(
         y_px=y,
-        J=flow_jacobian(intrinsics, at_u, at_v, z, dt_s),
+        J=flow_jacobian(intrinsics, u + shift[0], v + shift[1], z, dt_s),
         u_px=u,
         v_px=v,
         cell_weight=cell_weight,
