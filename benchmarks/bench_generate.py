@@ -23,8 +23,12 @@ see the same machine load; the table prints medians and the ratio now / each bas
   render, networks and writer threads and llvmpipe's) per frame over the same steady frames,
   from ``getrusage``; a shared machine's load changes it far less than the rates (W=1 only: it
   generates in the measuring process);
-- ``short W=2 wall``: ``--short-frames`` frames (default 24) with 2 workers, wall frames/s: what
-  a short run sees; printed as a fraction of the 2-worker steady rate too.
+- ``short W=2 wall``: ``--short-frames`` frames (default 24) with 2 workers and the default
+  ``--chunk-frames`` (32), wall frames/s: what ``roft-sim generate --frames 24 --workers 2``
+  sees (at most one unit of frames is generated in-process: spawning workers would cost more than
+  it saves); printed as a fraction of the 2-worker steady rate too;
+- ``short W=2 wall, unit per worker``: the same run cut into one unit per worker, so both workers
+  are spawned (``--chunk-frames 12``): the cost of spawning on a short run.
 
 Then the ratios of the goals (issue 17): 1-worker steady / render+seg+flow, and short / steady.
 The 1-minute load average is printed with every row (the machine may be shared).
@@ -111,8 +115,11 @@ def child_generate(
     cache: Path,
     nvof_source: str | None = None,
     msaa: int | None = None,
+    default_chunks: bool = False,
 ) -> tuple[float, float, float]:
-    """(steady, wall) frames/s and CPU ms per steady frame (W=1) of one run (module doc)."""
+    """(steady, wall) frames/s and CPU ms per steady frame (W=1) of one run (module doc): one
+    unit of frames per worker, or ``GenerationOptions``' default chunking with
+    ``default_chunks``."""
     from roft_sim.generation import GenerationOptions, ScenarioOverrides, generate_dataset
     from roft_sim.render.gl_backend import require_gl_backend
 
@@ -130,7 +137,7 @@ def child_generate(
     options = {
         "format": fmt,
         "workers": workers,
-        "chunk_frames": max(1, -(-frames // workers)),  # one unit per worker
+        **({} if default_chunks else {"chunk_frames": max(1, -(-frames // workers))}),
         "progress": False,
         "gl_backend": backend,
         "cache_dir": cache,
@@ -196,7 +203,13 @@ def child_main(spec: dict[str, Any]) -> None:
         result: Any = child_render(resolution, spec["frames"], cache, variant.get("msaa"))
     else:
         result = child_generate(
-            resolution, spec["frames"], spec["workers"], spec["format"], cache, **variant
+            resolution,
+            spec["frames"],
+            spec["workers"],
+            spec["format"],
+            cache,
+            **variant,
+            default_chunks=bool(spec.get("default_chunks", False)),
         )
     print("RESULT " + json.dumps(result))
 
@@ -302,12 +315,16 @@ def throughput(args: argparse.Namespace, trees: list[Tree]) -> None:
         short = None
         if 2 in steady and args.short_frames:
             spec = {**base, "kind": "generate", "frames": args.short_frames, "workers": 2}
-            short = measure(trees, spec, args.repeats, 1)
+            short = measure(trees, {**spec, "default_chunks": True}, args.repeats, 1)
             print_row(f"short N={args.short_frames} W=2 wall", short, trees)
+            spawned = measure(trees, spec, args.repeats, 1)
+            print_row(f"short N={args.short_frames} W=2 wall, unit per worker", spawned, trees)
         if 1 in steady:
             print(f"   W=1 steady / render+seg+flow ({now}): {steady[1][now] / render[now]:.2f}")
         if short is not None:
             print(f"   short / W=2 steady ({now}): {short[now] / steady[2][now]:.2f}")
+            ratio = spawned[now] / steady[2][now]
+            print(f"   short, unit per worker / W=2 steady ({now}): {ratio:.2f}")
 
 
 def memory(args: argparse.Namespace, tree: Tree) -> None:
