@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+import pytest
 from observation_schedules import (
     Delivery,
     build_observations,
@@ -21,6 +22,7 @@ from roft_sim.trackers.roft import PoseGateConfig, RoftTracker, ablation_config
 from roft_sim.trackers.roft.innovation_gate import (
     InnovationSpread,
     adaptive_gate_test,
+    horizon_factor,
     initial_spread,
 )
 
@@ -267,3 +269,69 @@ def test_an_unconfirmed_track_is_reinitialised_by_a_disagreeing_pose(small_seq):
         _, rad = transform_distance(est[12].T_cam_obj[None], gt[12][None])
         errors[reinit] = float(np.degrees(rad[0]))
     assert errors[True] < 15.0 and errors[False] > 60.0, errors
+
+
+def test_adaptive_gate_widens_with_the_frames_since_the_last_passing_pose():
+    """With poses passing every 6 frames at 5 degrees per axis, a 25-degree innovation fails
+    6 frames after the last one and passes 30 frames after it (the spread times 30 / 6); it
+    then enters the spread as a 6-frame innovation of 25 / sqrt(5) degrees would. Without
+    ``horizon_scaling`` it fails at 30 frames too."""
+    gate = PoseGateConfig(enable=True, adaptive=True)
+    spread = initial_spread(gate)
+    per_axis = np.radians(5.0) ** 2
+    for k in range(0, 120, 6):
+        passes, spread = adaptive_gate_test(gate, spread, (1e-4, 3 * per_axis), (0.0, 0.0), k)
+        assert passes
+    assert spread.last_frame == 114 and spread.gap_frames == pytest.approx(6.0)
+    big = (1e-4, np.radians(25.0) ** 2 * 3)
+    assert not adaptive_gate_test(gate, spread, big, (0.0, 0.0), 120)[0]
+    passes, after = adaptive_gate_test(gate, spread, big, (0.0, 0.0), 144)
+    assert passes and after.last_frame == 144
+    _, as_if_regular = adaptive_gate_test(gate, spread, (1e-4 / 5, big[1] / 5), (0.0, 0.0), 120)
+    assert after.rotation_rad2 == pytest.approx(as_if_regular.rotation_rad2, rel=1e-12)
+    fixed = dataclasses.replace(gate, horizon_scaling=False)
+    assert not adaptive_gate_test(fixed, spread, big, (0.0, 0.0), 144)[0]
+    # without a capture frame (or before two poses passed) there is no scaling
+    assert not adaptive_gate_test(gate, spread, big, (0.0, 0.0))[0]
+    assert horizon_factor(gate, initial_spread(gate), 500) == 1.0
+
+
+def test_a_pose_after_a_stretch_without_poses_is_tested_against_the_drift_it_allows(small_seq):
+    """Poses every 6 frames up to frame 12, then none until frame 36, while the flow says the
+    box stands still (zero flow, frames 13-36): the filter drifts about 15 degrees and 7.6 cm
+    from the truth. With a gate whose spread is about 2.5 degrees and 1.2 cm per axis, the
+    correct pose of frame 36 fails a test sized for a 6-frame horizon and is gated (the filter
+    stays off: ``horizon_scaling`` off); tested against 24 / 6 times the spread it is fused,
+    and the track is back within 10 degrees and 2 cm from its arrival."""
+    seq = small_seq
+    gt = seq.gt.T_cam_obj
+    flows = [seq.flow(k, "gt") for k in range(len(seq))]
+    for k in range(13, 37):
+        flow = flows[k]
+        assert flow is not None
+        flows[k] = dataclasses.replace(flow, flow_px=np.zeros_like(flow.flow_px))
+    deliveries = [Delivery(0, 0, 0), Delivery(6, 12, 1), Delivery(12, 18, 2), Delivery(36, 42, 3)]
+    masks = paper_schedule(len(seq), first_id=1000)
+    worst = {}
+    for scaling in (True, False):
+        config = dataclasses.replace(
+            TINY,
+            outlier_rejection=dataclasses.replace(TINY.outlier_rejection, enable=False),
+            gate=dataclasses.replace(
+                TINY.gate,
+                horizon_scaling=scaling,
+                prior_rotation_deg=2.5,
+                prior_translation_m=0.012,
+                prior_weight=100.0,  # the spread stays at the prior
+            ),
+        )
+        est = run(
+            RoftTracker(config, make_context(seq)),
+            build_observations(seq, poses=deliveries, masks=masks, flows=flows),
+        )
+        fused = est[42].accepted_pose_ids == (3,)
+        assert fused == scaling and (est[42].rejected_pose_ids == (3,)) != scaling
+        dt, dr = transform_distance(np.stack([e.T_cam_obj for e in est[42:]]), gt[42:])
+        worst[scaling] = (float(np.degrees(dr.max())), float(dt.max()))
+    assert worst[True][0] < 10.0 and worst[True][1] < 0.02, worst
+    assert worst[False][0] > 14.0 and worst[False][1] > 0.04, worst

@@ -531,6 +531,12 @@ class PoseGateConfig:
     memory_poses: float = 10.0
     """Adaptive gate: time constant of the running mean, in accepted poses (older innovations
     weigh ``(1 - 1 / memory_poses)^age``)."""
+    horizon_scaling: bool = True
+    """Adaptive gate: test a pose captured ``d`` frames after the last passing pose against the
+    spread times ``max(1, d / g)``, ``g`` the mean gap between passing poses (the filter's
+    drift grows with the time it only predicts), and let it enter the spread divided by that
+    factor. Without it, a filter that drifted during a stretch without poses gated the
+    correct poses that came back (:mod:`roft_sim.trackers.roft.innovation_gate`)."""
     open_until_confirmed: bool = True
     """Adaptive gate: until one pose has passed the test, poses that fail it are fused anyway
     (the track is not confirmed: the pose that initialised the filter may be the outlier, e.g.

@@ -16,6 +16,13 @@ off by 15 degrees and the flow-integrated orientation drifts, the gate follows, 
 180-degree flip or a 30 cm jump still stands out. Poses accepted only because the rejection
 streak ran out (``max_consecutive_rejections``) do not enter ``s^2``.
 
+With ``gate.horizon_scaling`` the spread is per typical prediction horizon: a pose captured
+``d`` frames after the last pose that passed is tested against ``s^2 max(1, d / g)``, ``g`` the
+running mean of the frames between passing poses, and enters ``s^2`` divided by that factor. The
+filter's drift between poses grows with the time it only predicts (a random walk's variance in
+proportion to it), so after a long stretch without poses (a blackout, a detector that lost the
+object) the gate does not lock out the detections that would correct a filter that drifted.
+
 Until one pose has passed the test the track is not confirmed (``gate.open_until_confirmed``):
 a pose that fails is fused anyway, because the pose that initialised the filter may itself be
 the outlier (a flipped first detection would otherwise lock out the correct poses that follow
@@ -40,7 +47,13 @@ from roft_sim.trackers.roft.config import PoseGateConfig
 
 F64 = NDArray[np.float64]
 
-__all__ = ["InnovationSpread", "initial_spread", "squared_innovations", "adaptive_gate_test"]
+__all__ = [
+    "InnovationSpread",
+    "initial_spread",
+    "squared_innovations",
+    "horizon_factor",
+    "adaptive_gate_test",
+]
 
 
 @dataclass(frozen=True, slots=True)
@@ -55,6 +68,11 @@ class InnovationSpread:
     """Accumulated weight (prior plus decayed accepted poses)."""
     passed: int = 0
     """Poses that passed the test so far (0: the track is not confirmed yet)."""
+    last_frame: int = -1
+    """Capture frame of the last pose that passed (-1: none yet)."""
+    gap_frames: float = 0.0
+    """Running mean of the frames between the capture frames of consecutive passing poses (time
+    constant ``memory_poses``; 0 until two poses have passed)."""
 
 
 def initial_spread(gate: PoseGateConfig) -> InnovationSpread:
@@ -81,36 +99,62 @@ def squared_innovations(
     return d_t, d_r
 
 
+def horizon_factor(gate: PoseGateConfig, spread: InnovationSpread, capture_k: int | None) -> float:
+    """``max(1, d / g)`` for a pose captured at ``capture_k``, ``d`` frames after the last
+    passing pose and ``g`` the mean gap between passing poses; 1 without
+    ``gate.horizon_scaling``, before two poses have passed, or without a capture frame."""
+    if (
+        not gate.horizon_scaling
+        or capture_k is None
+        or spread.last_frame < 0
+        or spread.gap_frames <= 0.0
+    ):
+        return 1.0
+    return max(1.0, (capture_k - spread.last_frame) / spread.gap_frames)
+
+
 def adaptive_gate_test(
     gate: PoseGateConfig,
     spread: InnovationSpread,
     squared: tuple[float, float],
     predicted_variance: tuple[float, float],
+    capture_k: int | None = None,
 ) -> tuple[bool, InnovationSpread]:
     """Whether the innovation passes the test, and the spread after it.
 
     Args:
-        gate: the gate's settings (``probability``, ``memory_poses``).
+        gate: the gate's settings (``probability``, ``memory_poses``, ``horizon_scaling``).
         spread: the spread before this pose.
         squared: ``(|nu_p|^2 [m^2], |nu_r|^2 [rad^2])`` (:func:`squared_innovations`).
         predicted_variance: mean diagonal of the filter's predicted position [m^2] and rotation
             [rad^2] covariance blocks.
+        capture_k: the pose's capture frame (for ``horizon_scaling``; None: no scaling).
 
     Returns:
-        ``(passes, spread)``: the spread is updated with the innovation when it passes and
-        unchanged otherwise.
+        ``(passes, spread)``: the spread is updated with the innovation (divided by the
+        horizon factor) when it passes and unchanged otherwise.
     """
     limit = _chi2_3(gate.probability)
+    factor = horizon_factor(gate, spread, capture_k)
     d_t, d_r = squared
-    passes = d_t <= limit * (spread.translation_m2 + predicted_variance[0]) and d_r <= limit * (
-        spread.rotation_rad2 + predicted_variance[1]
+    passes = d_t <= limit * (factor * spread.translation_m2 + predicted_variance[0]) and (
+        d_r <= limit * (factor * spread.rotation_rad2 + predicted_variance[1])
     )
     if not passes:
         return False, spread
     weight = (1.0 - 1.0 / gate.memory_poses) * spread.weight + 1.0
+    last_frame, gap = spread.last_frame, spread.gap_frames
+    if capture_k is not None:
+        if last_frame >= 0 and capture_k > last_frame:
+            gaps = min(float(spread.passed), gate.memory_poses)  # gaps seen, this one included
+            gap += (capture_k - last_frame - gap) / max(gaps, 1.0)
+        last_frame = max(last_frame, capture_k)
+    d_t, d_r = d_t / factor, d_r / factor
     return True, InnovationSpread(
         translation_m2=spread.translation_m2 + (d_t / 3.0 - spread.translation_m2) / weight,
         rotation_rad2=spread.rotation_rad2 + (d_r / 3.0 - spread.rotation_rad2) / weight,
         weight=weight,
         passed=spread.passed + 1,
+        last_frame=last_frame,
+        gap_frames=gap,
     )

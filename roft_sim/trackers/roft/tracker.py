@@ -463,7 +463,7 @@ class RoftTracker:
             squared = squared_innovations(predicted.x[6:9], predicted.q, pose.p_m, pose.q_wxyz)
             P = predicted.P
             variance = (float(np.trace(P[6:9, 6:9])) / 3, float(np.trace(P[9:12, 9:12])) / 3)
-            passes, after = adaptive_gate_test(gate, spread, squared, variance)
+            passes, after = adaptive_gate_test(gate, spread, squared, variance, pose.capture_k)
             confirmed = spread.passed > 0 or not gate.open_until_confirmed
             gated = not passes and confirmed and streak < gate.max_consecutive_rejections
             spread = after
