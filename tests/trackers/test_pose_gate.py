@@ -38,6 +38,16 @@ def _jumped(T: np.ndarray, offset_m=(0.3, 0.0, 0.0)) -> np.ndarray:
     return out
 
 
+def _without_depth_test(**gate_changes):
+    """TINY without the depth test, so that only the gate decides, and with ``gate_changes``
+    to its (adaptive) gate."""
+    return dataclasses.replace(
+        TINY,
+        outlier_rejection=dataclasses.replace(TINY.outlier_rejection, enable=False),
+        gate=dataclasses.replace(TINY.gate, **gate_changes),
+    )
+
+
 def test_the_tight_gate_of_the_replay_property_does_gate(tiny_seq):
     """test_roft_tracker's replay property runs with a gate (GATED) that fires on its wild
     poses."""
@@ -216,9 +226,7 @@ def test_adaptive_gate_stays_open_until_a_pose_confirms_the_track(small_seq):
     are gated until the streak runs out."""
     seq = small_seq
     gt = seq.gt.T_cam_obj
-    no_depth_test = dataclasses.replace(
-        TINY, outlier_rejection=dataclasses.replace(TINY.outlier_rejection, enable=False)
-    )
+    no_depth_test = _without_depth_test()
     deliveries = [
         Delivery(0, 0, 0, _flipped(gt[0])),
         Delivery(6, 12, 1),
@@ -230,9 +238,7 @@ def test_adaptive_gate_stays_open_until_a_pose_confirms_the_track(small_seq):
     est = run(RoftTracker(no_depth_test, make_context(seq)), observations)
     assert [est[k].accepted_pose_ids for k in (12, 18, 24)] == [(1,), (2,), (3,)]
     _, open_rad = transform_distance(est[23].T_cam_obj[None], gt[23][None])
-    closed = dataclasses.replace(
-        no_depth_test, gate=dataclasses.replace(TINY.gate, open_until_confirmed=False)
-    )
+    closed = _without_depth_test(open_until_confirmed=False)
     est = run(
         RoftTracker(closed, make_context(seq)),
         build_observations(seq, poses=deliveries, masks=masks),
@@ -250,17 +256,11 @@ def test_an_unconfirmed_track_is_reinitialised_by_a_disagreeing_pose(small_seq):
     is degenerate for the UKF and the track stays far off at that frame."""
     seq = small_seq
     gt = seq.gt.T_cam_obj
-    no_depth_test = dataclasses.replace(
-        TINY, outlier_rejection=dataclasses.replace(TINY.outlier_rejection, enable=False)
-    )
     deliveries = [Delivery(0, 0, 0, _flipped(gt[0])), Delivery(6, 12, 1), Delivery(12, 18, 2)]
     masks = paper_schedule(len(seq), first_id=1000)
     errors = {}
     for reinit in (True, False):
-        config = dataclasses.replace(
-            no_depth_test,
-            gate=dataclasses.replace(TINY.gate, reinitialise_unconfirmed=reinit),
-        )
+        config = _without_depth_test(reinitialise_unconfirmed=reinit)
         est = run(
             RoftTracker(config, make_context(seq)),
             build_observations(seq, poses=deliveries, masks=masks),
@@ -314,16 +314,11 @@ def test_a_pose_after_a_stretch_without_poses_is_tested_against_the_drift_it_all
     masks = paper_schedule(len(seq), first_id=1000)
     worst = {}
     for scaling in (True, False):
-        config = dataclasses.replace(
-            TINY,
-            outlier_rejection=dataclasses.replace(TINY.outlier_rejection, enable=False),
-            gate=dataclasses.replace(
-                TINY.gate,
-                horizon_scaling=scaling,
-                prior_rotation_deg=2.5,
-                prior_translation_m=0.012,
-                prior_weight=100.0,  # the spread stays at the prior
-            ),
+        config = _without_depth_test(
+            horizon_scaling=scaling,
+            prior_rotation_deg=2.5,
+            prior_translation_m=0.012,
+            prior_weight=100.0,  # the spread stays at the prior
         )
         est = run(
             RoftTracker(config, make_context(seq)),
