@@ -19,6 +19,7 @@ from roft_sim.geometry.se3 import (
     transform_from_pq,
     transform_from_rt,
     transform_points,
+    twist_at_point_matrix,
     v_o_from_v_obj,
     v_obj_from_v_o,
 )
@@ -83,6 +84,7 @@ __all__ = [
     "transform_from_pq",
     "transform_from_rt",
     "transform_points",
+    "twist_at_point_matrix",
     "v_o_from_v_obj",
     "v_obj_from_v_o",
 ]

@@ -20,6 +20,7 @@ from roft_sim.geometry.so3 import (
     matrix_from_quat,
     quat_angle,
     quat_from_matrix,
+    skew,
 )
 
 F64 = NDArray[np.float64]
@@ -33,6 +34,7 @@ __all__ = [
     "transform_points",
     "v_o_from_v_obj",
     "v_obj_from_v_o",
+    "twist_at_point_matrix",
     "relative_motion",
     "transform_distance",
 ]
@@ -116,6 +118,15 @@ def v_obj_from_v_o(v_o: ArrayLike, w: ArrayLike, t_cam_obj: ArrayLike) -> F64:
     """Object-origin velocity ``v_obj = v_o + w x t`` [m/s] from ROFT's spatial twist."""
     v_o, w, t = (np.asarray(a, dtype=np.float64) for a in (v_o, w, t_cam_obj))
     return v_o + np.cross(w, t)
+
+
+def twist_at_point_matrix(point_m: ArrayLike) -> F64:
+    """(6, 6) ``T`` with ``T (v_o, w) = (v_o + w x c, w)``: :func:`v_obj_from_v_o` at the
+    point ``c = point_m`` (3,) [m, camera frame] as a linear map of ROFT's spatial twist, for
+    moving twists and their covariances (``T P T^T``) to a body point."""
+    T = np.eye(6)
+    T[:3, 3:] = -skew(np.asarray(point_m, dtype=np.float64))  # w x c = -[c]_x w
+    return T
 
 
 def relative_motion(

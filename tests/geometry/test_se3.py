@@ -47,6 +47,9 @@ def test_spatial_twist_roundtrip_and_point_velocity(v_obj, w, t):
     np.testing.assert_allclose(g.v_obj_from_v_o(v_o, w, t), v_obj, atol=1e-12)
     # the body point at the object origin moves with v_obj = v_o + w x t
     np.testing.assert_allclose(v_o + np.cross(w, t), v_obj, atol=1e-12)
+    # the same conversion as a linear map of the twist (for covariances)
+    moved = g.twist_at_point_matrix(t) @ np.concatenate([v_o, w])
+    np.testing.assert_allclose(moved, np.concatenate([v_obj, w]), atol=1e-12)
 
 
 def _pose_at(t, omega_world, v_world, T0):

@@ -57,7 +57,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.special import ndtr
 
-from roft_sim.geometry.so3 import skew
+from roft_sim.geometry.se3 import twist_at_point_matrix
 from roft_sim.trackers.roft.config import VelocityKFConfig
 from roft_sim.trackers.roft.velocity_kf import FlowMeasurement, VelocityKF
 
@@ -142,7 +142,7 @@ class SelectingVelocityKF:
             cov_ls = np.asarray(np.linalg.inv(info_ls), dtype=np.float64)
             self.decoupling_point_m = _decoupling_point(cov_ls)
             if scored:
-                shift = _point_shift(self.decoupling_point_m)  # (6, 6)
+                shift = twist_at_point_matrix(self.decoupling_point_m)  # (6, 6)
                 cov_c = shift @ cov_ls @ shift.T
                 s = np.array([_whitened_parts(shift @ (m_ls - p), cov_c) for p in predictions])
                 self._score(s)
@@ -181,7 +181,7 @@ class SelectingVelocityKF:
     def _combine(self) -> None:
         """Sets ``x`` and ``P`` to the constant model's, ``x_frame`` to the mixture."""
         a_v, a_w = self.weights_accel
-        shift = _point_shift(self.decoupling_point_m)
+        shift = twist_at_point_matrix(self.decoupling_point_m)
         at_c = (shift @ self.constant.x_frame, shift @ self.accel.x_frame)
         mixed = np.concatenate(
             [
@@ -207,13 +207,6 @@ def _decoupling_point(cov: F64) -> F64:
     M = cov[:3, 3:] @ np.linalg.inv(cov[3:, 3:])
     A = 0.5 * (M - M.T)
     return np.array([A[2, 1], A[0, 2], A[1, 0]])
-
-
-def _point_shift(c: F64) -> F64:
-    """(6, 6) ``T`` with ``T (v_o, w) = (v_o + w x c, w)``: the twist at point ``c`` [m]."""
-    T = np.eye(6)
-    T[:3, 3:] = -skew(c)  # w x c = -[c]_x w
-    return T
 
 
 def _whitened_parts(error: F64, cov: F64) -> F64:
