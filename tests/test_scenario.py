@@ -17,10 +17,10 @@ from roft_sim.sensors.depth_noise import NoDepthNoise, RealSenseDepthNoise
 from roft_sim.trajectories import SyntheticMotionConfig
 
 REPO = Path(__file__).resolve().parent.parent
-SHIPPED = sorted(  # scenario files: not the fault presets, not the sweep files
+SHIPPED = sorted(  # scenario files: not the fault presets, sweep files or tracker configurations
     p
     for p in (REPO / "scenarios").rglob("*.toml")
-    if not {"faults", "sweeps"} & set(p.relative_to(REPO).parts)
+    if not {"faults", "sweeps", "trackers"} & set(p.relative_to(REPO).parts)
 )
 
 MINIMAL = """
