@@ -25,6 +25,7 @@ from roft_sim.trackers.roft.velocity_kf import (
     flow_jacobian,
     flow_measurement,
     laplacian_likelihood,
+    occluder_free,
 )
 
 CAM = CameraIntrinsics(
@@ -397,3 +398,71 @@ def test_the_shipped_exact_flow_config_follows_flow_the_default_weighs_as_nvof()
     rms_exact = _rms_w_error_on_a_turning_small_object(exact.velocity)
     assert rms_exact < 0.06  # 0.041 rad/s
     assert rms_default > 0.09  # 0.110 rad/s: the lag
+
+
+def _object_and_hand(hand_twist, hand_in_front=True):
+    """An 80 x 80 px tilted patch at 0.65 m (the object, turning with ``_OBJECT_TWIST``) and a
+    50 x 30 px patch 5 cm in front of it or 5 cm behind it (the hand), one mask over both, exact
+    flow. Returns (pixels, depth (H, W) [m], u, v, z, y (N, 2) [px], J (N, 2, 6), is_hand (N,))."""
+    H, W = CAM.height_px, CAM.width_px
+    depth = np.zeros((H, W))
+    mask = np.zeros((H, W), bool)
+    vv, uu = np.mgrid[200:280, 280:360]
+    depth[vv, uu] = 0.65 + 0.0005 * (uu - 320)  # a 4 cm tilt, 0.5 mm between neighbours
+    mask[vv, uu] = True
+    hand = np.zeros((H, W), bool)
+    hand[230:260, 250:300] = True
+    depth[hand] = 0.60 if hand_in_front else 0.70
+    mask |= hand
+    pixels = PixelSet.from_mask(mask)
+    u, v = pixels.u, pixels.v
+    z = depth[v, u]
+    J = flow_jacobian(CAM, u, v, z, 1 / 30)
+    is_hand = hand[v, u]
+    y = np.where(is_hand[:, None], J @ hand_twist, J @ _OBJECT_TWIST)
+    return pixels, depth, u, v, z, y, J, is_hand
+
+
+_OBJECT_TWIST = np.array([0.1, -0.05, 0.02, 1.0, -1.5, 0.4])
+
+
+def test_a_part_in_front_that_moves_otherwise_is_dropped_and_the_rest_kept():
+    """The hand 5 cm in front, turning otherwise: all its pixels dropped, none of the object's;
+    the object's twist is then exact. Rigidly attached (same twist), in front or behind: kept."""
+    cfg = VelocityKFConfig()
+    other = _OBJECT_TWIST + np.array([0.05, 0.0, 0.0, 0.0, 1.0, 0.0])
+    pixels, depth, u, v, z, y, J, is_hand = _object_and_hand(other)
+    keep = occluder_free(pixels, depth, u, v, z, y, J, cfg)
+    assert not keep[is_hand].any() and keep[~is_hand].all()
+    fit = np.linalg.lstsq(J[keep].reshape(-1, 6), y[keep].reshape(-1), rcond=None)[0]
+    np.testing.assert_allclose(fit, _OBJECT_TWIST, atol=1e-9)
+    bent = np.linalg.lstsq(J.reshape(-1, 6), y.reshape(-1), rcond=None)[0]
+    assert np.linalg.norm(bent[3:] - _OBJECT_TWIST[3:]) > 0.05  # what the hand did to the fit
+    for twist, in_front in ((_OBJECT_TWIST, True), (other, False)):
+        pixels, depth, u, v, z, y, J, is_hand = _object_and_hand(twist, in_front)
+        assert occluder_free(pixels, depth, u, v, z, y, J, cfg).all()
+
+
+def test_a_hand_whose_flow_is_smoothed_towards_the_object_is_kept():
+    """Dense flow smooths a hand towards the object: a part that disagrees by less than one
+    pixel's noise is not an occluder to drop."""
+    rng = np.random.default_rng(5)
+    pixels, depth, u, v, z, y, J, is_hand = _object_and_hand(_OBJECT_TWIST)
+    y = y + rng.normal(0.0, 0.3, y.shape)
+    y[is_hand] += 0.2  # a slight, smoothed-away disagreement [px]
+    assert occluder_free(pixels, depth, u, v, z, y, J, VelocityKFConfig()).all()
+
+
+def test_flow_measurement_leaves_out_the_hand_and_the_reference_reads_it():
+    """Through ``flow_measurement``: the default leaves the hand's pixels out; the reference
+    configuration (no occluder test) reads every pixel of the mask."""
+    other = _OBJECT_TWIST + np.array([0.05, 0.0, 0.0, 0.0, 1.0, 0.0])
+    pixels, depth, u, v, z, y, J, is_hand = _object_and_hand(other)
+    field = np.zeros((CAM.height_px, CAM.width_px, 2), np.float32)
+    field[v, u] = y
+    flow = FlowField(flow_px=field, from_k=0, to_k=1)
+    default = flow_measurement(pixels, depth, flow, CAM, 1 / 30, VelocityKFConfig(), stride=1)
+    reference = flow_measurement(
+        pixels, depth, flow, CAM, 1 / 30, VelocityKFConfig(occluder_depth_jump_m=None), stride=1
+    )
+    assert len(reference) == len(u) and len(default) == int((~is_hand).sum())

@@ -172,6 +172,17 @@ class VelocityKFConfig:
     mask pixels [m]: background that a propagated mask has picked up (a trail of points left
     behind at the silhouette, a wall seen through a hole) is dropped before it biases the
     twist. None: no band (the reference)."""
+    occluder_depth_jump_m: float | None = 0.02
+    """Drop the parts of the mask in front of the object that move otherwise
+    (``velocity_kf.occluder_free``): the mask is cut where adjacent pixels differ in depth by
+    more than this [m], and a part more than this in front of the largest one whose mean flow
+    disagrees with the largest part's rigid motion (``occluder_probability``) is not used. A
+    mask that spills onto the hand holding the object otherwise bends the weakly observed
+    out-of-plane rotation of a small object by 100-200 deg/s with exact or white-noise flow
+    (docs/roft.md, "Round 8"). None: off (the reference)."""
+    occluder_probability: float = 0.999
+    """Probability of the prediction region a part's mean flow residual must leave to be
+    dropped as an occluder."""
     skip_stale_velocity: bool = True
     """When the filter could not update (too few valid pixels, no flow), give the pose UKF no
     velocity measurement for that frame; False feeds the previous twist again (the reference)."""
@@ -368,6 +379,17 @@ class VelocityKFConfig:
         if not (math.isfinite(self.adaptation_frames) and self.adaptation_frames >= 1):
             raise ConfigError(
                 f"velocity.adaptation_frames must be >= 1, got {self.adaptation_frames}"
+            )
+        if self.occluder_depth_jump_m is not None and not (
+            math.isfinite(self.occluder_depth_jump_m) and self.occluder_depth_jump_m > 0
+        ):
+            raise ConfigError(
+                "velocity.occluder_depth_jump_m must be > 0 m (or absent: off), got "
+                f"{self.occluder_depth_jump_m}"
+            )
+        if not 0.0 < self.occluder_probability < 1.0:
+            raise ConfigError(
+                f"velocity.occluder_probability must be in (0, 1), got {self.occluder_probability}"
             )
         if not (math.isfinite(self.process_noise_floor) and 0 < self.process_noise_floor <= 1):
             raise ConfigError(

@@ -60,6 +60,7 @@ def _reference_velocity() -> VelocityKFConfig:
         min_pixels=3,  # observability minimum, hard-coded (report 7.3)
         mask_erosion_px=0,  # the flow is read on the whole mask of k-1 (report 3.2)
         depth_band_m=None,  # only 0 < D < depth_maximum (report 3.2)
+        occluder_depth_jump_m=None,  # every mask pixel is the object's (report 3.2)
         midpoint_jacobian=False,  # eq. 9 at the pixel of frame k-1 (report 3.2)
         adapt_flow_noise=False,  # fixed R (report 3.3)
         independent_pixels_per_cell=False,  # every sampled pixel is one measurement (report 3.4)
@@ -256,6 +257,12 @@ DEVIATIONS: tuple[Deviation, ...] = (
         "the reported twist mixes the constant and a constant-acceleration velocity KF, "
         "weighted by how well each predicted the flow (the UKF keeps the constant model's)",
         _restore("velocity", "motion_model"),
+    ),
+    Deviation(
+        "occluder_parts",
+        "parts of the mask in front of the object (depth jumps > 2 cm) whose flow disagrees "
+        "with the object's rigid motion are not used",
+        _restore("velocity", "occluder_depth_jump_m", "occluder_probability"),
     ),
 )
 """The deviations in the order the attribution table adds them; applying all of them to

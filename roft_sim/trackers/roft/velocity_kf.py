@@ -17,8 +17,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.stats import chi2
 
 from roft_sim.geometry.camera import CameraIntrinsics
 from roft_sim.records import FlowField
@@ -85,6 +87,118 @@ def flow_jacobian(
     return J * dt_s
 
 
+_OCCLUDER_MIN_PIXELS = 12
+"""Fewer sampled pixels than this: no occluder test (too few to fit a motion and test parts)."""
+_OCCLUDER_PART_MIN_PIXELS = 5
+"""A depth part with fewer sampled pixels is never tested (too few for its mean flow)."""
+
+
+def _label_depth_edges(
+    labels: NDArray[np.int32], z: F64, box: NDArray[np.bool_], jump_m: float
+) -> NDArray[np.int32]:
+    """``labels`` (h, w) with each mask pixel on a depth edge (label 0) given the label of the
+    8-neighbour nearest in depth among the labelled ones within ``jump_m``: the pixels on either
+    side of a cut join their own side."""
+    h, w = labels.shape
+    best = np.full((h, w), np.inf)
+    out = labels.copy()
+    edge = box & (labels == 0)
+    pad_l = np.pad(labels, 1)
+    pad_z = np.pad(z, 1, constant_values=np.inf)
+    for dv in (-1, 0, 1):
+        for du in (-1, 0, 1):
+            if dv == 0 and du == 0:
+                continue
+            nl = pad_l[1 + dv : 1 + dv + h, 1 + du : 1 + du + w]
+            gap = np.abs(pad_z[1 + dv : 1 + dv + h, 1 + du : 1 + du + w] - z)
+            better = edge & (nl > 0) & (gap <= jump_m) & (gap < best)
+            out[better] = nl[better]
+            best[better] = gap[better]
+    return out
+
+
+def occluder_free(
+    pixels: PixelSet,
+    depth_m: NDArray[np.floating],
+    u: NDArray[np.int64],
+    v: NDArray[np.int64],
+    z: F64,
+    y: F64,
+    J: F64,
+    config: VelocityKFConfig,
+) -> NDArray[np.bool_]:
+    """Which sampled pixels to keep: not those of a part of the mask that lies in front of the
+    object and moves otherwise (a hand the mask has spilled onto).
+
+    The mask of frame k-1 is cut where adjacent pixels differ in depth by more than
+    ``config.occluder_depth_jump_m``; the part holding most sampled pixels is the object, and its
+    pixels' least-squares twist predicts the flow of the others. A part is dropped when its
+    median depth is more than the jump in front of the object's and its mean flow residual lies
+    outside the ``config.occluder_probability`` prediction region of one pixel (the object's
+    twist covariance propagated, plus one pixel's flow noise, the robust spread of the object's
+    residuals): with exact or white-noise flow a hand's flow differs by pixels from the
+    object's; dense flow (DIS, NVOF) that smooths the hand towards the object keeps it, as it
+    keeps parts behind or beside the object (its own silhouette at grazing angles).
+
+    Args:
+        pixels: the mask of frame k-1 (all its pixels, before the stride).
+        depth_m: (H, W) z-depth of frame k-1 [m].
+        u, v: (N,) columns and rows of the sampled, valid pixels.
+        z: (N,) their depth [m].
+        y: (N, 2) their flow [px].
+        J: (N, 2, 6) their flow Jacobian [px per (m/s), px per (rad/s)].
+        config: the filter settings.
+
+    Returns:
+        (N,) bool, True for the pixels to use.
+    """
+    keep = np.ones(len(u), dtype=bool)
+    jump = float(config.occluder_depth_jump_m or 0.0)
+    v0, u0 = int(pixels.v.min()), int(pixels.u.min())
+    box = np.zeros((int(pixels.v.max()) + 1 - v0, int(pixels.u.max()) + 1 - u0), dtype=bool)
+    box[pixels.v - v0, pixels.u - u0] = True
+    zb = np.asarray(depth_m[v0 : v0 + box.shape[0], u0 : u0 + box.shape[1]], dtype=np.float64)
+    box &= zb > 0.0
+    cut = np.zeros_like(box)
+    dx = (np.abs(np.diff(zb, axis=1)) > jump) & box[:, 1:] & box[:, :-1]
+    cut[:, 1:] |= dx
+    cut[:, :-1] |= dx
+    dy = (np.abs(np.diff(zb, axis=0)) > jump) & box[1:, :] & box[:-1, :]
+    cut[1:, :] |= dy
+    cut[:-1, :] |= dy
+    n_parts, labels = cv2.connectedComponents((box & ~cut).astype(np.uint8), connectivity=4)
+    if n_parts <= 2:  # the background label and at most one part
+        return keep
+    labels = _label_depth_edges(np.asarray(labels, dtype=np.int32), zb, box, jump)
+    part = labels[v - v0, u - u0]  # 0: an edge pixel no part claims (kept, not tested)
+    counts = np.bincount(part, minlength=n_parts)
+    counts[0] = 0
+    main = int(np.argmax(counts))
+    on_main = part == main
+    A = J[on_main].reshape(-1, 6)
+    H = A.T @ A
+    try:
+        twist = np.linalg.solve(H, A.T @ y[on_main].reshape(-1))
+        H_inv = np.linalg.inv(H)
+    except np.linalg.LinAlgError:
+        return keep
+    residual = y[on_main] - J[on_main] @ twist
+    # per-component flow variance: the median of |r|^2 (chi-square, 2 dof: median 1.386 s^2) / 2
+    var_px2 = max(float(np.median(np.sum(residual * residual, axis=1))) / (2.0 * 1.3863), 1e-12)
+    limit = float(chi2.ppf(config.occluder_probability, 2))
+    z_main = float(np.median(z[on_main]))
+    for label in np.unique(part[(part != 0) & ~on_main]):
+        idx = np.flatnonzero(part == label)
+        if len(idx) < _OCCLUDER_PART_MIN_PIXELS or not np.median(z[idx]) < z_main - jump:
+            continue
+        mean_residual = (y[idx] - J[idx] @ twist).mean(axis=0)
+        J_mean = J[idx].mean(axis=0)
+        C = var_px2 * (J_mean @ H_inv @ J_mean.T + np.eye(2))
+        if float(mean_residual @ np.linalg.solve(C, mean_residual)) > limit:
+            keep[idx] = False
+    return keep
+
+
 def flow_measurement(
     pixels: PixelSet,
     depth_m: NDArray[np.floating],
@@ -121,6 +235,11 @@ def flow_measurement(
         ok &= np.abs(z - np.median(z[ok])) < config.depth_band_m
     u, v, z, f = u[ok], v[ok], z[ok], f[ok]
     y = np.stack([f.real, f.imag], axis=1).astype(np.float64)
+    if config.occluder_depth_jump_m is not None and u.size >= _OCCLUDER_MIN_PIXELS:
+        shift0 = 0.5 * np.median(y, axis=0) if config.midpoint_jacobian else np.zeros(2)
+        J0 = flow_jacobian(intrinsics, u + shift0[0], v + shift0[1], z, dt_s)
+        keep = occluder_free(pixels, depth_m, u, v, z, y, J0, config)
+        u, v, z, y = u[keep], v[keep], z[keep], y[keep]
     cell_weight = None
     if config.independent_pixels_per_cell and flow.grid_px > 1 and u.size:
         g = flow.grid_px
