@@ -10,6 +10,10 @@ errors that name the file, the dotted key and the fix:
   tuple[...], list[...], dict[str, ...], Optional, nested dataclasses, and unions of dataclasses
   told apart by their ``kind: Literal[...]`` field);
 - ``ConfigError`` raised by ``__post_init__`` is re-raised with the key path in front.
+
+TOML has no null: an optional value (``X | None``) is set to None with the string
+:data:`NONE_SPELLING` (``"none"``), unless ``"none"`` is itself a value of the field (a string,
+a path, a Literal holding it).
 """
 
 from __future__ import annotations
@@ -33,11 +37,15 @@ T = TypeVar("T")
 
 _INDEX_SUFFIX = re.compile(r"\[\d+\]$")
 
+NONE_SPELLING = "none"
+"""How a TOML file sets an optional value (``X | None``) to None (TOML has no null)."""
+
 __all__ = [
     "load_toml",
     "dataclass_from_mapping",
     "load_dataclass_toml",
     "jsonable",
+    "NONE_SPELLING",
 ]
 
 
@@ -155,6 +163,16 @@ def _build_dataclass(cls: type, data: Any, where: str, base: Any = None) -> Any:
         raise ConfigError(f"{where}: invalid {cls.__name__}: {e}") from None
 
 
+def _takes_strings(tp: Any) -> bool:
+    """True if ``"none"`` may itself be a value of type ``tp`` (str, Path, Any, a Literal
+    holding "none"), so that it is not read as None."""
+    if tp is Any or tp is str or tp is Path:
+        return True
+    if get_origin(tp) is Literal:
+        return NONE_SPELLING in get_args(tp)
+    return False
+
+
 def _type_name(tp: Any) -> str:
     return getattr(tp, "__name__", None) or str(tp).replace("typing.", "")
 
@@ -170,6 +188,12 @@ def _convert(tp: Any, value: Any, where: str) -> Any:  # noqa: C901 - one branch
         if value is None and type(None) in args:
             return None
         options = [a for a in args if a is not type(None)]
+        if (
+            value == NONE_SPELLING
+            and type(None) in args
+            and not any(_takes_strings(a) for a in options)
+        ):
+            return None
         dc_options: list[Any] = [a for a in options if dataclasses.is_dataclass(a)]
         if dc_options and isinstance(value, Mapping):
             return _convert_tagged_union(dc_options, value, where)

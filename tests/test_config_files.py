@@ -159,3 +159,36 @@ def test_a_partial_table_of_roft_keeps_the_default_gate_and_of_the_reference_its
     expected = reference_config().mask
     assert ref.mask.cleanup == expected.cleanup and ref.mask.subpixel == expected.subpixel
     assert ref.mask.rounding == "nearest"
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class WithOptionals:
+    band_m: float | None = 0.15
+    label: str | None = "x"
+    where: Path | None = None
+    mode: Literal["a", "b"] | None = "a"
+    named: Literal["a", "none"] | None = "a"
+
+
+def test_the_string_none_sets_an_optional_value_to_none_where_it_is_not_a_value_itself():
+    """TOML has no null: ``"none"`` switches an optional setting off (ROFT's
+    ``velocity.depth_band_m``, ``occluder_depth_jump_m``), but stays a string, a path or a
+    literal where the field can hold it."""
+    cfg = dataclass_from_mapping(
+        WithOptionals,
+        {"band_m": "none", "label": "none", "where": "none", "mode": "none", "named": "none"},
+    )
+    assert cfg.band_m is None and cfg.mode is None
+    assert cfg.label == "none" and cfg.where == Path("none") and cfg.named == "none"
+    with pytest.raises(ConfigError, match="band_m"):
+        dataclass_from_mapping(WithOptionals, {"band_m": "off"})
+
+
+def test_a_roft_deviation_can_be_switched_off_from_a_tracker_toml(tmp_path):
+    from roft_sim.trackers import get_tracker_spec, load_tracker_config
+
+    path = tmp_path / "roft.toml"
+    path.write_text('[velocity]\noccluder_depth_jump_m = "none"\ndepth_band_m = "none"\n')
+    cfg = load_tracker_config(get_tracker_spec("roft"), path)
+    assert cfg.velocity.occluder_depth_jump_m is None and cfg.velocity.depth_band_m is None
+    assert cfg.velocity.mask_erosion_m == 0.005  # the rest keeps the default
