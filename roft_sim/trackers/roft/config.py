@@ -179,7 +179,7 @@ class VelocityKFConfig:
     disagrees with the largest part's rigid motion (``occluder_probability``) is not used. A
     mask that spills onto the hand holding the object otherwise bends the weakly observed
     out-of-plane rotation of a small object by 100-200 deg/s with exact or white-noise flow
-    (docs/roft.md, "Round 8"). None: off (the reference)."""
+    (docs/roft.md, "Round 8"). None (``"none"`` in TOML): off (the reference)."""
     occluder_probability: float = 0.999
     """Probability of the prediction region a part's mean flow residual must leave to be
     dropped as an occluder."""
@@ -384,7 +384,7 @@ class VelocityKFConfig:
             math.isfinite(self.occluder_depth_jump_m) and self.occluder_depth_jump_m > 0
         ):
             raise ConfigError(
-                "velocity.occluder_depth_jump_m must be > 0 m (or absent: off), got "
+                'velocity.occluder_depth_jump_m must be > 0 m (or "none": off), got '
                 f"{self.occluder_depth_jump_m}"
             )
         if not 0.0 < self.occluder_probability < 1.0:

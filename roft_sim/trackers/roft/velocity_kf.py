@@ -137,8 +137,10 @@ def occluder_free(
     outside the ``config.occluder_probability`` prediction region of one pixel (the object's
     twist covariance propagated, plus one pixel's flow noise, the robust spread of the object's
     residuals): with exact or white-noise flow a hand's flow differs by pixels from the
-    object's; dense flow (DIS, NVOF) that smooths the hand towards the object keeps it, as it
-    keeps parts behind or beside the object (its own silhouette at grazing angles).
+    object's. A part whose flow a dense estimator (DIS, NVOF) has smoothed to within that
+    region is kept, and so is every part behind or beside the object; with such flow the test
+    can also drop a part of the object itself whose flow error differs (docs/roft.md, "Round
+    8").
 
     Args:
         pixels: the mask of frame k-1 (all its pixels, before the stride).
