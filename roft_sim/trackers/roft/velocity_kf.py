@@ -201,6 +201,24 @@ def occluder_free(
     return keep
 
 
+def _measurement_jacobian(
+    intrinsics: CameraIntrinsics,
+    u: NDArray[np.int64],
+    v: NDArray[np.int64],
+    z: F64,
+    y: F64,
+    dt_s: float,
+    config: VelocityKFConfig,
+) -> F64:
+    """(N, 2, 6) flow Jacobian of the measurement's pixels, evaluated at the pixel of k-1 or,
+    with ``config.midpoint_jacobian``, half the pixels' median displacement ``y`` (N, 2) [px]
+    further (VelocityKFConfig)."""
+    shift = np.zeros(2)  # where the Jacobian is evaluated, from each pixel of k-1 [px]
+    if config.midpoint_jacobian and u.size:
+        shift = 0.5 * np.median(y, axis=0)
+    return flow_jacobian(intrinsics, u + shift[0], v + shift[1], z, dt_s)
+
+
 def flow_measurement(
     pixels: PixelSet,
     depth_m: NDArray[np.floating],
@@ -237,11 +255,12 @@ def flow_measurement(
         ok &= np.abs(z - np.median(z[ok])) < config.depth_band_m
     u, v, z, f = u[ok], v[ok], z[ok], f[ok]
     y = np.stack([f.real, f.imag], axis=1).astype(np.float64)
+    J: F64 | None = None
     if config.occluder_depth_jump_m is not None and u.size >= _OCCLUDER_MIN_PIXELS:
-        shift0 = 0.5 * np.median(y, axis=0) if config.midpoint_jacobian else np.zeros(2)
-        J0 = flow_jacobian(intrinsics, u + shift0[0], v + shift0[1], z, dt_s)
-        keep = occluder_free(pixels, depth_m, u, v, z, y, J0, config)
-        u, v, z, y = u[keep], v[keep], z[keep], y[keep]
+        J = _measurement_jacobian(intrinsics, u, v, z, y, dt_s, config)
+        keep = occluder_free(pixels, depth_m, u, v, z, y, J, config)
+        if not keep.all():  # the midpoint moves with the pixels kept
+            u, v, z, y, J = u[keep], v[keep], z[keep], y[keep], None
     cell_weight = None
     if config.independent_pixels_per_cell and flow.grid_px > 1 and u.size:
         g = flow.grid_px
@@ -249,12 +268,9 @@ def flow_measurement(
             (v // g) * (w // g + 1) + u // g, return_inverse=True, return_counts=True
         )
         cell_weight = 1.0 / counts[inverse].astype(np.float64)
-    shift = np.zeros(2)  # where the Jacobian is evaluated, from each pixel of k-1 [px]
-    if config.midpoint_jacobian and u.size:  # half the median displacement (VelocityKFConfig)
-        shift = 0.5 * np.median(y, axis=0)
     return FlowMeasurement(
         y_px=y,
-        J=flow_jacobian(intrinsics, u + shift[0], v + shift[1], z, dt_s),
+        J=J if J is not None else _measurement_jacobian(intrinsics, u, v, z, y, dt_s, config),
         u_px=u,
         v_px=v,
         cell_weight=cell_weight,
