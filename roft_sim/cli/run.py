@@ -244,6 +244,38 @@ def print_metrics_table(metrics: dict[str, dict[str, Any]], first_header: str) -
     print(text_table([Column("name", first_header, align="left"), *METRIC_COLUMNS], rows), end="")
 
 
+def interval_velocity_summaries(sources: list[Any]) -> dict[str, dict[str, Any]]:
+    """Per sequence with ground truth, the e_v / e_w that the exact interval motion gives at the
+    camera's frame rate (:mod:`roft_sim.metrics.interval_velocity`), as JSON-ready dicts."""
+    from roft_sim.metrics import interval_velocity_errors
+
+    out = {}
+    for source in sources:
+        truth = source.sequence.ground_truth()
+        if truth is not None:
+            out[source.sequence.name] = interval_velocity_errors(truth).summary()
+    return out
+
+
+def print_interval_velocity_table(summaries: dict[str, dict[str, Any]]) -> None:
+    """Prints :func:`interval_velocity_summaries` under a line saying what they are."""
+    from roft_sim.report.tables import Column, text_table
+
+    if not summaries:
+        return
+    print(
+        "velocity from the exact interval motion, scored like e_v [cm/s] / e_w [deg/s]: held = "
+        "the interval mean as the velocity at its end, extrapolated = carried half an interval "
+        "forward, fitted = last 3 interval means fitted to the truth itself (docs/metrics.md)"
+    )
+    columns = [Column("name", "sequence", align="left")] + [
+        Column(f"{how}_{unit}", f"{what} {how}", ".2f")
+        for what, unit in (("e_v", "v_cmps"), ("e_w", "w_dps"))
+        for how in ("held", "extrapolated", "fitted")
+    ]
+    print(text_table(columns, [{"name": n, **s} for n, s in summaries.items()]), end="")
+
+
 def _print_reference_note(tree: Any) -> None:
     print(
         f"reference tree in {tree.root} (config {tree.config_name}): from there, "
@@ -292,7 +324,12 @@ def _run(args: argparse.Namespace) -> int:
         tum=args.tum,
     )
     if args.json:
-        summary = {"out": str(out), "invalid": options.invalid, "metrics": result.metrics}
+        summary = {
+            "out": str(out),
+            "invalid": options.invalid,
+            "metrics": result.metrics,
+            "interval_velocity": interval_velocity_summaries(sources),
+        }
         if result.reference_tree is not None:
             summary["reference"] = {
                 "config": result.reference_tree.config_name,
@@ -304,6 +341,7 @@ def _run(args: argparse.Namespace) -> int:
 
         print_metrics_table(result.metrics, "sequence")
         print(policy_note(options.invalid))
+        print_interval_velocity_table(interval_velocity_summaries(sources))
         print(f"results in {out}", file=sys.stderr)
         if result.reference_tree is not None:
             _print_reference_note(result.reference_tree)

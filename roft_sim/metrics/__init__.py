@@ -1,5 +1,6 @@
 """Pose and velocity metrics (ADD, ADD-S, YCB-Video AUC, RMSE), filter consistency (NEES, NIS),
-synchronisation figures and step-time statistics. Definitions: docs/metrics.md."""
+synchronisation figures, step-time statistics and the velocity the frame rate leaves known
+(interval velocity). Definitions: docs/metrics.md."""
 
 from roft_sim.metrics.auc import DEFAULT_MAX_THRESHOLD_M, accuracy_curve, add_auc
 from roft_sim.metrics.consistency import (
@@ -17,6 +18,11 @@ from roft_sim.metrics.consistency import (
     normalized_bias,
     pose_error_tangent,
     state_error,
+)
+from roft_sim.metrics.interval_velocity import (
+    IntervalVelocityErrors,
+    interval_mean_twists,
+    interval_velocity_errors,
 )
 from roft_sim.metrics.pose_errors import (
     add_distances,
@@ -57,6 +63,7 @@ __all__ = [
     "ArrivalEffect",
     "BiasReport",
     "ChiSquareTest",
+    "IntervalVelocityErrors",
     "InvalidPolicy",
     "NeesReport",
     "OutlierRejectionStats",
@@ -75,6 +82,8 @@ __all__ = [
     "evaluate_sequence",
     "held_estimate_index",
     "innovation_whiteness",
+    "interval_mean_twists",
+    "interval_velocity_errors",
     "mahalanobis_squared",
     "nees",
     "nees_test",

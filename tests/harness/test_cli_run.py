@@ -8,6 +8,8 @@ import pytest
 from harness_cases import write_box_dataset
 
 from roft_sim.cli import main
+from roft_sim.datasets import open_sequence
+from roft_sim.metrics.interval_velocity import interval_velocity_errors
 
 
 @pytest.fixture(scope="module")
@@ -21,11 +23,20 @@ def test_run_prints_a_table_and_writes_results(dataset, tmp_path, capsys):
         ["run", str(dataset), "--tracker", "detector-hold", "--flow", "none", "--out", str(out)]
     )
     assert code == 0
-    table = capsys.readouterr().out.splitlines()
+    lines = capsys.readouterr().out.splitlines()
+    policy = next(i for i, line in enumerate(lines) if line.startswith("invalid estimates"))
+    table, interval = lines[:policy], lines[policy + 1 :]
     assert table[0].split()[:3] == ["sequence", "ADD-AUC", "%"]
-    assert [line.split()[0] for line in table[2:-1]] == ["box_a", "box_b", "ALL", "MEAN"]
+    assert [line.split()[0] for line in table[2:]] == ["box_a", "box_b", "ALL", "MEAN"]
     # the paper faults (the default) score with the reference's policy, and the table says so
-    assert table[-1].startswith("invalid estimates: hold (frames before the first tracker pose")
+    assert lines[policy].startswith("invalid estimates: hold (frames before the first tracker")
+    # then what the exact interval motion gives as the velocity, per sequence
+    assert interval[0].startswith("velocity from the exact interval motion")
+    assert interval[1].split()[:3] == ["sequence", "e_v", "held"]
+    for line, name in zip(interval[3:], ("box_a", "box_b"), strict=True):
+        truth = open_sequence(dataset / name).ground_truth()
+        held_w = interval_velocity_errors(truth).held_w_dps
+        assert line.split()[0] == name and float(line.split()[4]) == pytest.approx(held_w, abs=0.01)
     assert (out / "box_a" / "pose_estimate.txt").is_file()
     metrics = json.loads((out / "metrics.json").read_text())
     assert set(metrics) == {"ALL", "MEAN", "box_a", "box_b"}
@@ -41,6 +52,8 @@ def test_run_json_and_single_sequence(dataset, tmp_path, capsys):
     assert summary["out"] == str(out)
     assert summary["invalid"] == "failure"  # auto: our policy outside the paper faults
     assert list(summary["metrics"]) == ["ALL", "MEAN", "box_b"]
+    truth = open_sequence(dataset / "box_b").ground_truth()
+    assert summary["interval_velocity"] == {"box_b": interval_velocity_errors(truth).summary()}
     run = json.loads((out / "run.json").read_text())
     assert run["options"]["seed"] == 4 and run["options"]["faults"]["name"] == "bursts"
     assert "--seed=4" in run["command"]
