@@ -46,6 +46,7 @@ from roft_sim.geometry.so3 import (
     rotvec_from_matrix,
     rotvec_from_quat,
     skew,
+    so3_left_jacobian,
 )
 
 __all__ = [
@@ -80,6 +81,7 @@ __all__ = [
     "rotvec_from_matrix",
     "rotvec_from_quat",
     "skew",
+    "so3_left_jacobian",
     "transform_distance",
     "transform_from_pq",
     "transform_from_rt",

@@ -36,6 +36,7 @@ __all__ = [
     "rotvec_from_quat",
     "matrix_from_rotvec",
     "rotvec_from_matrix",
+    "so3_left_jacobian",
     "quat_from_axis_angle",
     "axis_angle_from_quat",
     "matrix_from_axis_angle",
@@ -248,6 +249,21 @@ def matrix_from_rotvec(r: ArrayLike) -> F64:
 def rotvec_from_matrix(R: ArrayLike) -> F64:
     """Rotation vectors ``(..., 3)`` [rad] from rotation matrices (log map); exact near 0 and pi."""
     return rotvec_from_quat(quat_from_matrix(R))
+
+
+def so3_left_jacobian(r: ArrayLike) -> F64:
+    """Left Jacobian ``(..., 3, 3)`` of SO(3) at rotation vectors ``r`` ``(..., 3)``:
+    ``d/dt exp([r]x) = [J_l(r) r']x exp([r]x)``; also the translation part of the SE(3)
+    exponential, ``exp((v, w) t)`` moves by ``J_l(w t) v t``."""
+    r = np.asarray(r, dtype=np.float64)
+    theta = np.linalg.norm(r, axis=-1)[..., None, None]
+    K = skew(r)
+    small = theta < 1e-6
+    t = np.where(small, 1.0, theta)
+    a = np.where(small, 0.5 - theta**2 / 24.0, (1.0 - np.cos(t)) / t**2)
+    b = np.where(small, 1.0 / 6.0 - theta**2 / 120.0, (t - np.sin(t)) / t**3)
+    V: F64 = np.eye(3) + a * K + b * (K @ K)
+    return V
 
 
 def quat_from_axis_angle(axis_angle: ArrayLike) -> F64:

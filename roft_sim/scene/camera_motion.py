@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from roft_sim.errors import ConfigError
-from roft_sim.geometry import invert_transform, matrix_from_rotvec, skew
+from roft_sim.geometry import invert_transform, matrix_from_rotvec, so3_left_jacobian
 from roft_sim.scene.config import CameraFileMotionConfig, CameraMotionConfig, CameraSwayConfig
 from roft_sim.trajectories.captured import read_pose_samples
 from roft_sim.trajectories.rigid_map import RigidlyMappedTrajectory
@@ -24,7 +24,7 @@ from roft_sim.trajectories.spline import SplinePoseTrajectory
 
 F64 = NDArray[np.float64]
 
-__all__ = ["CameraPoses", "camera_poses", "file_camera_trajectory", "so3_left_jacobian"]
+__all__ = ["CameraPoses", "camera_poses", "file_camera_trajectory"]
 
 _PHASE_T = np.array([0.0, 2.0, 4.0]) * np.pi / 3.0
 _PHASE_R = np.pi / 2.0 + _PHASE_T
@@ -40,20 +40,6 @@ class CameraPoses:
     """(N, 3) velocity of the camera origin, world frame [m/s]."""
     w_world_radps: F64
     """(N, 3) camera angular velocity, world frame [rad/s] (``dR/dt = [w]x R``)."""
-
-
-def so3_left_jacobian(r: ArrayLike) -> F64:
-    """Left Jacobian ``(..., 3, 3)`` of SO(3) at rotation vectors ``r`` ``(..., 3)``:
-    ``d/dt exp([r]x) = [J_l(r) r']x exp([r]x)``."""
-    r = np.asarray(r, dtype=np.float64)
-    theta = np.linalg.norm(r, axis=-1)[..., None, None]
-    K = skew(r)
-    small = theta < 1e-6
-    t = np.where(small, 1.0, theta)
-    a = np.where(small, 0.5 - theta**2 / 24.0, (1.0 - np.cos(t)) / t**2)
-    b = np.where(small, 1.0 / 6.0 - theta**2 / 120.0, (t - np.sin(t)) / t**3)
-    V: F64 = np.eye(3) + a * K + b * (K @ K)
-    return V
 
 
 def camera_poses(config: CameraMotionConfig | None, t_s: ArrayLike) -> CameraPoses:

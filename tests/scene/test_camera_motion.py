@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from roft_sim.geometry import rotvec_from_matrix
-from roft_sim.scene.camera_motion import camera_poses, so3_left_jacobian
+from roft_sim.geometry import rotvec_from_matrix, so3_left_jacobian
+from roft_sim.scene.camera_motion import camera_poses
 from roft_sim.scene.config import CameraSwayConfig
 
 
