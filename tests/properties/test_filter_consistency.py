@@ -85,10 +85,11 @@ REFERENCE_NOISE = {
     "adapt_flow_noise": False,
     "adapt_process_noise": False,
     "midpoint_jacobian": False,
+    "finite_motion_correction": False,
 }
-"""The reference's fixed Q and R, as given, and its first-order flow model at the pixel of k-1
-(the synthetic flow above is drawn from exactly that model: the filter's model is then the
-truth's)."""
+"""The reference's fixed Q and R, as given, and its first-order flow model at the pixel of k-1,
+without the finite-motion correction (the synthetic flow above is drawn from exactly that
+linear model: the filter's model is then the truth's)."""
 
 EXACT_KF = VelocityKFConfig(weight_flow=False, subsampling_stride=5, **REFERENCE_NOISE)
 
@@ -124,6 +125,7 @@ def test_adaptive_velocity_kf_learns_its_noise_and_stays_consistent():
         adapt_process_noise=True,
         motion_model="constant",
         midpoint_jacobian=False,  # the truth's flow model (above)
+        finite_motion_correction=False,
     )
     errors, covs = _velocity_kf_errors(truth, told)
     result = check_error_consistency(errors[:, 10:], covs[:, 10:])

@@ -59,10 +59,10 @@ def bounds() -> tuple[float, float]:
 
 
 def test_the_no_burst_bounds(bounds):
-    """The bounds the property uses (measured: 4.6 cm and 4.4 deg; 4.6 cm and 21.6 deg with
-    the previous defaults)."""
+    """The bounds the property uses (measured: 1.9 cm and 5.2 deg since round 9's finite-motion
+    correction; 4.6 cm and 4.4 deg before it; 4.6 cm and 21.6 deg with older defaults)."""
     bound_m, bound_rad = bounds
-    assert 0.02 < bound_m < 0.06 and np.radians(2) < bound_rad < np.radians(10)
+    assert 0.01 < bound_m < 0.06 and np.radians(2) < bound_rad < np.radians(10)
 
 
 @settings(max_examples=budget(8, 150), deadline=None, suppress_health_check=[HealthCheck.too_slow])

@@ -22,6 +22,7 @@ from roft_sim.trackers.roft.mask_sync import PixelSet
 from roft_sim.trackers.roft.velocity_kf import (
     FlowMeasurement,
     VelocityKF,
+    finite_motion_flow,
     flow_jacobian,
     flow_measurement,
     laplacian_likelihood,
@@ -102,13 +103,96 @@ def test_midpoint_jacobian_fits_the_finite_flow_of_a_fast_frame_better(twist):
     field = FlowField(flow_px=flow.astype(np.float32), from_k=0, to_k=1)
     errors = {}
     for midpoint in (False, True):
-        cfg = VelocityKFConfig(midpoint_jacobian=midpoint, subsampling_stride=1, depth_band_m=None)
+        cfg = VelocityKFConfig(
+            midpoint_jacobian=midpoint,
+            subsampling_stride=1,
+            depth_band_m=None,
+            finite_motion_correction=False,
+        )
         m = flow_measurement(PixelSet.from_mask(mask), depth, field, cam, dt, cfg)
         est = np.linalg.lstsq(m.J.reshape(-1, 6), m.y_px.reshape(-1), rcond=None)[0]
         errors[midpoint] = np.array(
             [np.linalg.norm(est[:3] - twist[:3]), np.linalg.norm(est[3:] - twist[3:])]
         )
     assert (errors[True] < errors[False] * [0.65, 0.9]).all(), errors
+
+
+def test_finite_motion_flow_is_the_projection_of_the_se3_exponential():
+    """Against scipy's matrix exponential of the twist and an explicit projection, and the
+    linear model's limit for a short step."""
+    rng = np.random.default_rng(3)
+    P = rng.uniform([-0.2, -0.15, 0.4], [0.2, 0.15, 1.2], (60, 3))
+    uv = project_points(CAM, P)
+    for twist, dt in ((rng.normal(size=6), 1 / 30), (np.array([0.4, 0, -0.2, 0, 4.0, 1.0]), 0.1)):
+        xi = np.zeros((4, 4))
+        xi[:3, :3] = skew(twist[3:])
+        xi[:3, 3] = twist[:3]
+        moved = P @ expm(xi * dt)[:3, :3].T + expm(xi * dt)[:3, 3]
+        expected = project_points(CAM, moved) - uv
+        got = finite_motion_flow(CAM, uv[:, 0], uv[:, 1], P[:, 2], twist, dt)
+        np.testing.assert_allclose(got, expected, atol=1e-9)
+    twist, dt = rng.normal(size=6), 1e-6
+    J = flow_jacobian(CAM, uv[:, 0], uv[:, 1], P[:, 2], dt)
+    np.testing.assert_allclose(
+        finite_motion_flow(CAM, uv[:, 0], uv[:, 1], P[:, 2], twist, dt), J @ twist, rtol=1e-4
+    )
+
+
+@pytest.mark.parametrize(
+    "twist",
+    [[0.5, -0.3, -0.4, 1.5, -1.0, 2.0], [0.1, 0.05, 0.0, 3.7, 1.0, -0.6]],
+    ids=["fast-spin", "out-of-plane-210-dps"],
+)
+def test_the_finite_motion_correction_recovers_a_fast_twist_from_exact_flow(twist):
+    """The exact flow of one 1/30 s frame (motion exp(dt xi)) of a small tilted patch at 0.6 m:
+    corrected at the pixels' own twist (the first update: within 0.2 deg/s and 2 mm/s), or by
+    a filter whose interval mean is 20 % off (corrected at that, then twice at the filter's own
+    estimate: iterated-EKF steps; within 0.5 deg/s and 5 mm/s), the least-squares twist of the
+    pixels is the true one; the linear model alone (the reference, even with the midpoint Jacobian) misses the
+    rotation by degrees per second."""
+    twist = np.asarray(twist)
+    cam = CameraIntrinsics(
+        fx_px=300.0, fy_px=300.0, cx_px=79.5, cy_px=59.5, width_px=160, height_px=120
+    )
+    v, u = np.mgrid[0:120, 0:160]
+    depth = (0.6 + 0.0008 * (u - 80) + 0.0004 * (v - 60)).astype(np.float32)
+    dt = 1 / 30
+    xi = np.zeros((4, 4))
+    xi[:3, :3] = skew(twist[3:])
+    xi[:3, 3] = twist[:3]
+    flow, valid = rigid_flow(cam, depth, np.zeros((120, 160), int), expm(xi * dt)[None])
+    mask = np.zeros_like(valid)
+    mask[35:85, 50:110] = valid[35:85, 50:110]
+    field = FlowField(flow_px=flow.astype(np.float32), from_k=0, to_k=1)
+    errors = {}
+    for name, correct, at in (
+        ("linear", False, None),
+        ("own fit", True, None),
+        ("filter", True, 0.8 * twist),
+    ):
+        cfg = VelocityKFConfig(
+            subsampling_stride=1,
+            depth_band_m=None,
+            finite_motion_correction=correct,
+            motion_model="constant",
+            cov_v0=(1.0, 1.0, 1.0),
+            cov_w0=(1.0, 1.0, 1.0),
+        )
+        m = flow_measurement(
+            PixelSet.from_mask(mask), depth, field, cam, dt, cfg, linearization_twist=at
+        )
+        kf = VelocityKF(cfg)
+        if at is not None:  # a filter that has run: its interval mean is 20 % off this one
+            kf.x, kf.updates = at.copy(), 1
+        assert kf.step(m, t_s=dt, dt_s=dt) and kf.fit is not None
+        est = kf.fit[0]  # the pixels' own twist, after the filter's relinearisation
+        errors[name] = (
+            100 * np.linalg.norm(est[:3] - twist[:3]),
+            np.rad2deg(np.linalg.norm(est[3:] - twist[3:])),
+        )
+    assert errors["own fit"][0] < 0.2 and errors["own fit"][1] < 0.2, errors
+    assert errors["filter"][0] < 0.5 and errors["filter"][1] < 0.5, errors
+    assert errors["linear"][1] > 1.5, errors
 
 
 def _mask_with_depth(n_rows=6):

@@ -167,6 +167,18 @@ class VelocityKFConfig:
     flow noise on TUNING). False: at the pixel of frame k-1 (the reference). Chosen on TUNING
     (docs/roft.md, round 6): GT inputs TUM room1 640x360 ADD-AUC 88.9 -> 91.1 %, e_v 3.63 ->
     2.54 cm/s."""
+    finite_motion_correction: bool = True
+    """The flow is the image motion of the finite rigid motion over the interval, which the
+    instantaneous model (paper eq. 9) only approximates: at 200 deg/s and 30 fps (7 deg per
+    frame) the least-squares twist of exact flow was 12-20 % short of the interval's rotation
+    on an out-of-plane turn. True: the measured flow is corrected by ``h(x) - J x`` (``h``:
+    the exact flow of the constant twist ``x`` over the interval, SE(3) exponential, depth of
+    frame k-1), so that the linear model holds near ``x``: the velocity filter's current
+    interval mean (the constant model's), or before its first update the pixels' own
+    least-squares twist. The correction is second order in the motion, so slow frames are
+    untouched; the filter's own twist, not a fit of one frame's noisy pixels, keeps it from
+    amplifying noise (a per-frame fit as ``x`` raised TUNING's e_v, docs/roft.md "Round 9").
+    False: the linear model alone (the reference)."""
     depth_band_m: float | None = 0.15
     """Use only pixels whose depth is within this distance of the median depth of the sampled
     mask pixels [m]: background that a propagated mask has picked up (a trail of points left

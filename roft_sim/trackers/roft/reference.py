@@ -62,6 +62,7 @@ def _reference_velocity() -> VelocityKFConfig:
         depth_band_m=None,  # only 0 < D < depth_maximum (report 3.2)
         occluder_depth_jump_m=None,  # every mask pixel is the object's (report 3.2)
         midpoint_jacobian=False,  # eq. 9 at the pixel of frame k-1 (report 3.2)
+        finite_motion_correction=False,  # the flow is eq. 9's linear model alone (report 3.2)
         adapt_flow_noise=False,  # fixed R (report 3.3)
         independent_pixels_per_cell=False,  # every sampled pixel is one measurement (report 3.4)
         adapt_process_noise=False,  # fixed Q per step (report 3.1)
@@ -263,6 +264,12 @@ DEVIATIONS: tuple[Deviation, ...] = (
         "parts of the mask in front of the object (depth jumps > 2 cm) whose flow disagrees "
         "with the object's rigid motion are not used",
         _restore("velocity", "occluder_depth_jump_m", "occluder_probability"),
+    ),
+    Deviation(
+        "finite_motion",
+        "the flow is corrected for the finite rigid motion over the interval (SE(3) "
+        "exponential at the filter's twist), so the linear model holds at fast turns",
+        _restore("velocity", "finite_motion_correction"),
     ),
 )
 """The deviations in the order the attribution table adds them; applying all of them to

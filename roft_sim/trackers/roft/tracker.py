@@ -255,6 +255,7 @@ class RoftTracker:
             dt,
             self._config.velocity,
             stride=self._stride,
+            linearization_twist=kf.x if kf.updates > 0 else None,
         )
         if kf.step(meas, frames=dt * self._context.fps, t_s=t_s, dt_s=dt):
             return len(meas)

@@ -15,6 +15,8 @@ Laplacian likelihood of its innovation norm.
 
 from __future__ import annotations
 
+import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import cv2
@@ -23,6 +25,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.stats import chi2
 
 from roft_sim.geometry.camera import CameraIntrinsics
+from roft_sim.geometry.so3 import matrix_from_rotvec, so3_left_jacobian
 from roft_sim.records import FlowField
 from roft_sim.trackers.roft.config import VelocityKFConfig
 from roft_sim.trackers.roft.mask_sync import PixelSet, lookup_flow
@@ -34,6 +37,7 @@ __all__ = [
     "FlowMeasurement",
     "flow_measurement",
     "flow_jacobian",
+    "finite_motion_flow",
     "laplacian_likelihood",
     "VelocityKF",
 ]
@@ -56,6 +60,10 @@ class FlowMeasurement:
     """(N,) pixel rows in frame k-1."""
     cell_weight: F64 | None = None
     """(N,) 1 / (number of the N pixels that read the same flow grid cell), or None (all 1)."""
+    relinearize: Callable[[F64], F64] | None = None
+    """``twist (6,) -> (N, 2)``: the measured flow [px] corrected for the finite motion at that
+    twist instead (``finite_motion_correction``); the filter calls it at its own first
+    estimate of the interval and updates with the result. None: ``y_px`` is final."""
 
     def __len__(self) -> int:
         return int(self.y_px.shape[0])
@@ -85,6 +93,68 @@ def flow_jacobian(
     J[..., 1, 4] = up * vp / fx
     J[..., 1, 5] = up * fy / fx
     return J * dt_s
+
+
+def finite_motion_flow(
+    intrinsics: CameraIntrinsics,
+    u_px: ArrayLike,
+    v_px: ArrayLike,
+    z_m: ArrayLike,
+    twist: ArrayLike,
+    dt_s: float,
+) -> F64:
+    """``(N, 2)`` flow [px] of pixels ``(u, v)`` with z-depth ``Z`` [m] when the body moves
+    with the constant spatial twist ``(v_o [m/s], w [rad/s])`` for ``dt_s`` [s]: each point
+    ``P`` goes to ``exp(dt (v_o, w)) P = R P + J_l(w dt) v_o dt`` (``R = exp([w dt]x)``); the
+    finite counterpart of :func:`flow_jacobian` (NaN where a point ends behind the camera)."""
+    fx, fy = intrinsics.fx_px, intrinsics.fy_px
+    cx, cy = intrinsics.cx_px, intrinsics.cy_px
+    u = np.asarray(u_px, dtype=np.float64)
+    v = np.asarray(v_px, dtype=np.float64)
+    z = np.asarray(z_m, dtype=np.float64)
+    x = np.asarray(twist, dtype=np.float64)
+    rotvec = x[3:] * dt_s
+    P = np.stack([(u - cx) / fx * z, (v - cy) / fy * z, z], axis=-1)
+    moved = P @ matrix_from_rotvec(rotvec).T + so3_left_jacobian(rotvec) @ (x[:3] * dt_s)
+    depth = np.where(moved[..., 2] > 0.0, moved[..., 2], np.nan)
+    return np.stack([fx * moved[..., 0] / depth + cx - u, fy * moved[..., 1] / depth + cy - v], -1)
+
+
+_FINITE_MOTION_MIN_PIXELS = 6
+"""Fewer pixels than this and no twist given: no finite-motion correction (their own twist is
+not determined)."""
+_FINITE_MOTION_FITS = 2
+"""Re-fits of the pixels' least-squares twist when no twist is given (the first update)."""
+_RELINEARIZATIONS = 2
+"""Iterated-EKF steps of :meth:`VelocityKF.relinearized`."""
+
+
+def _finite_motion_corrected(
+    intrinsics: CameraIntrinsics,
+    u: NDArray[np.int64],
+    v: NDArray[np.int64],
+    z: F64,
+    y: F64,
+    J: F64,
+    dt_s: float,
+    twist: F64 | None,
+) -> F64:
+    """The flow ``y`` (N, 2) [px] less ``h(x) - J x`` (VelocityKFConfig.finite_motion_correction)
+    at ``x = twist`` (6,), or with None at the least-squares twist of the corrected flow, re-fitted
+    ``_FINITE_MOTION_FITS`` times from the linear model's; ``y`` unchanged if ``h`` is not
+    finite (a point carried behind the camera)."""
+    corrected = y
+    for _ in range(1 if twist is not None else _FINITE_MOTION_FITS):
+        x = (
+            twist
+            if twist is not None
+            else np.linalg.lstsq(J.reshape(-1, 6), corrected.reshape(-1), rcond=None)[0]
+        )
+        correction = finite_motion_flow(intrinsics, u, v, z, x, dt_s) - J @ x
+        if not np.isfinite(correction).all():
+            return y
+        corrected = y - correction
+    return corrected
 
 
 _OCCLUDER_MIN_PIXELS = 12
@@ -228,6 +298,7 @@ def flow_measurement(
     config: VelocityKFConfig,
     *,
     stride: int | None = None,
+    linearization_twist: ArrayLike | None = None,
 ) -> FlowMeasurement:
     """Builds the flow measurement from the mask and depth of frame k-1 and the flow F_k
     (the Jacobian at each pixel of k-1, or half the pixels' median displacement further with
@@ -243,6 +314,10 @@ def flow_measurement(
         config: the filter settings.
         stride: the subsampling stride (default ``config.subsampling_stride`` as given; the
             tracker passes ``config.stride(width)``).
+        linearization_twist: (6,) ``(v_o [m/s], w [rad/s])`` at which
+            ``config.finite_motion_correction`` corrects the flow (the tracker passes the
+            velocity filter's interval mean once it has one); None: the pixels' own
+            least-squares twist.
     """
     index = pixels.index[:: stride if stride is not None else config.subsampling_stride]
     z = np.take(depth_m.reshape(-1), index).astype(np.float64)
@@ -261,6 +336,20 @@ def flow_measurement(
         keep = occluder_free(pixels, depth_m, u, v, z, y, J, config)
         if not keep.all():  # the midpoint moves with the pixels kept
             u, v, z, y, J = u[keep], v[keep], z[keep], y[keep], None
+    if J is None:
+        J = _measurement_jacobian(intrinsics, u, v, z, y, dt_s, config)
+    relinearize: Callable[[F64], F64] | None = None
+    if config.finite_motion_correction and linearization_twist is not None:
+        measured, jacobian = y, J
+
+        def corrected_at(twist: F64) -> F64:
+            return _finite_motion_corrected(intrinsics, u, v, z, measured, jacobian, dt_s, twist)
+
+        y = corrected_at(np.asarray(linearization_twist, dtype=np.float64))
+        relinearize = corrected_at
+    elif config.finite_motion_correction and u.size >= _FINITE_MOTION_MIN_PIXELS:
+        # no filter estimate yet: at the pixels' own least-squares twist, re-fitted
+        y = _finite_motion_corrected(intrinsics, u, v, z, y, J, dt_s, None)
     cell_weight = None
     if config.independent_pixels_per_cell and flow.grid_px > 1 and u.size:
         g = flow.grid_px
@@ -270,10 +359,11 @@ def flow_measurement(
         cell_weight = 1.0 / counts[inverse].astype(np.float64)
     return FlowMeasurement(
         y_px=y,
-        J=J if J is not None else _measurement_jacobian(intrinsics, u, v, z, y, dt_s, config),
+        J=J,
         u_px=u,
         v_px=v,
         cell_weight=cell_weight,
+        relinearize=relinearize,
     )
 
 
@@ -443,6 +533,8 @@ class VelocityKF:
         cfg = self._config
         if measurement is None or len(measurement) < cfg.min_pixels:
             return False
+        if measurement.relinearize is not None:
+            measurement = self.relinearized(measurement, frames, t_s, dt_s)
         if cfg.motion_model == "constant_acceleration":
             if t_s is None or dt_s is None:
                 raise ValueError(
@@ -494,6 +586,30 @@ class VelocityKF:
         self.x = x_new
         self.P = P_post
         return True
+
+    def relinearized(
+        self,
+        measurement: FlowMeasurement,
+        frames: float,
+        t_s: float | None,
+        dt_s: float | None,
+    ) -> FlowMeasurement:
+        """``measurement`` with its flow corrected for the finite motion at this filter's own
+        estimate of the interval (the robust update from the predicted interval mean, twice:
+        iterated-EKF steps; nothing of the filter changes) and ``relinearize`` cleared.
+        :meth:`step` calls it when the measurement can be relinearised."""
+        if self._config.motion_model == "constant_acceleration" and t_s is not None and dt_s:
+            X_pred, P_X = self._predict_constant_acceleration(t_s, dt_s)
+            M = np.hstack([np.eye(6), -0.5 * dt_s * np.eye(6)])  # interval mean of X
+            x_pred, P_pred = M @ X_pred, M @ P_X @ M.T
+        else:
+            x_pred, P_pred = self.x, self.P + np.diag(self.q_diag * max(frames, 1e-9))
+        relinearize = measurement.relinearize
+        assert relinearize is not None  # checked by the caller
+        for _ in range(_RELINEARIZATIONS):
+            dx = self._robust_weights(measurement, x_pred, P_pred)[3][0]
+            measurement = dataclasses.replace(measurement, y_px=relinearize(x_pred + dx))
+        return dataclasses.replace(measurement, relinearize=None)
 
     def predicted_interval_mean(self, t_s: float, dt_s: float) -> F64:
         """The mean twist (6,) [m/s, rad/s] this filter predicts for the interval

@@ -128,6 +128,14 @@ class SelectingVelocityKF:
                 "motion_model = 'auto' needs the frame time t_s and the interval dt_s the flow "
                 "spans"
             )
+        if (
+            measurement is not None
+            and measurement.relinearize is not None
+            and len(measurement) >= self._config.min_pixels
+        ):
+            # once, at the constant model's estimate, for both models (the pose UKF reads the
+            # constant model: its twist is the same as on its own; half the cost)
+            measurement = self.constant.relinearized(measurement, frames, t_s, dt_s)
         scored = self.constant.updates > 0
         predictions = (
             self.constant.predicted_interval_mean(t_s, dt_s),
