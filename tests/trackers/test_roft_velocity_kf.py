@@ -76,6 +76,26 @@ def test_small_rigid_motion_flow_matches_the_linear_model():
     np.testing.assert_allclose(J @ twist, flow[valid], atol=1e-3 * np.abs(flow[valid]).max())
 
 
+def _exp_twist(twist, dt):
+    """(4, 4) ``exp(dt xi)`` of the spatial twist ``(v_o, w)`` (6,) by scipy's expm."""
+    xi = np.zeros((4, 4))
+    xi[:3, :3] = skew(twist[3:])
+    xi[:3, 3] = twist[:3]
+    return expm(xi * dt)
+
+
+def _exact_frame(twist, depth, dt, window):
+    """The 160x120 camera, the mask of ``window`` (rows, columns) where the exact flow is valid,
+    and that flow of a 1/30 s step of the constant ``twist`` (6,) of the surface ``depth``."""
+    cam = CameraIntrinsics(
+        fx_px=300.0, fy_px=300.0, cx_px=79.5, cy_px=59.5, width_px=160, height_px=120
+    )
+    flow, valid = rigid_flow(cam, depth, np.zeros(depth.shape, int), _exp_twist(twist, dt)[None])
+    mask = np.zeros_like(valid)
+    mask[window] = valid[window]
+    return cam, mask, FlowField(flow_px=flow.astype(np.float32), from_k=0, to_k=1)
+
+
 @pytest.mark.parametrize(
     "twist",
     [[0.5, -0.3, -0.4, 1.5, -1.0, 2.0], [0.6, -0.4, -0.4, 0.8, -0.6, 0.5]],
@@ -88,19 +108,10 @@ def test_midpoint_jacobian_fits_the_finite_flow_of_a_fast_frame_better(twist):
     Jacobian at the pixel of frame k-1 (the reference's first-order model): the linear part by
     at least 1/0.65, the angular part by at least 1/0.9."""
     twist = np.asarray(twist)
-    cam = CameraIntrinsics(
-        fx_px=300.0, fy_px=300.0, cx_px=79.5, cy_px=59.5, width_px=160, height_px=120
-    )
     v, u = np.mgrid[0:120, 0:160]
     depth = (0.6 + 0.001 * u + 0.0005 * v).astype(np.float32)
     dt = 1 / 30
-    xi = np.zeros((4, 4))
-    xi[:3, :3] = skew(twist[3:])
-    xi[:3, 3] = twist[:3]
-    flow, valid = rigid_flow(cam, depth, np.zeros((120, 160), int), expm(xi * dt)[None])
-    mask = np.zeros_like(valid)
-    mask[30:90, 40:120] = valid[30:90, 40:120]
-    field = FlowField(flow_px=flow.astype(np.float32), from_k=0, to_k=1)
+    cam, mask, field = _exact_frame(twist, depth, dt, (slice(30, 90), slice(40, 120)))
     errors = {}
     for midpoint in (False, True):
         cfg = VelocityKFConfig(
@@ -124,10 +135,8 @@ def test_finite_motion_flow_is_the_projection_of_the_se3_exponential():
     P = rng.uniform([-0.2, -0.15, 0.4], [0.2, 0.15, 1.2], (60, 3))
     uv = project_points(CAM, P)
     for twist, dt in ((rng.normal(size=6), 1 / 30), (np.array([0.4, 0, -0.2, 0, 4.0, 1.0]), 0.1)):
-        xi = np.zeros((4, 4))
-        xi[:3, :3] = skew(twist[3:])
-        xi[:3, 3] = twist[:3]
-        moved = P @ expm(xi * dt)[:3, :3].T + expm(xi * dt)[:3, 3]
+        motion = _exp_twist(twist, dt)
+        moved = P @ motion[:3, :3].T + motion[:3, 3]
         expected = project_points(CAM, moved) - uv
         got = finite_motion_flow(CAM, uv[:, 0], uv[:, 1], P[:, 2], twist, dt)
         np.testing.assert_allclose(got, expected, atol=1e-9)
@@ -148,22 +157,13 @@ def test_the_finite_motion_correction_recovers_a_fast_twist_from_exact_flow(twis
     corrected at the pixels' own twist (the first update: within 0.2 deg/s and 2 mm/s), or by
     a filter whose interval mean is 20 % off (corrected at that, then twice at the filter's own
     estimate: iterated-EKF steps; within 0.5 deg/s and 5 mm/s), the least-squares twist of the
-    pixels is the true one; the linear model alone (the reference, even with the midpoint Jacobian) misses the
-    rotation by degrees per second."""
+    pixels is the true one; the linear model alone (the reference, even with the midpoint
+    Jacobian) misses the rotation by degrees per second."""
     twist = np.asarray(twist)
-    cam = CameraIntrinsics(
-        fx_px=300.0, fy_px=300.0, cx_px=79.5, cy_px=59.5, width_px=160, height_px=120
-    )
     v, u = np.mgrid[0:120, 0:160]
     depth = (0.6 + 0.0008 * (u - 80) + 0.0004 * (v - 60)).astype(np.float32)
     dt = 1 / 30
-    xi = np.zeros((4, 4))
-    xi[:3, :3] = skew(twist[3:])
-    xi[:3, 3] = twist[:3]
-    flow, valid = rigid_flow(cam, depth, np.zeros((120, 160), int), expm(xi * dt)[None])
-    mask = np.zeros_like(valid)
-    mask[35:85, 50:110] = valid[35:85, 50:110]
-    field = FlowField(flow_px=flow.astype(np.float32), from_k=0, to_k=1)
+    cam, mask, field = _exact_frame(twist, depth, dt, (slice(35, 85), slice(50, 110)))
     errors = {}
     for name, correct, at in (
         ("linear", False, None),
