@@ -11,6 +11,11 @@ algebraically one batch update, done here in information form with a single 6x6 
 ``P+ = (P-^-1 + J^T W J)^-1``, ``x+ = x- + P+ J^T W (y - J x-)``, ``W = R^-1`` (diagonal).
 The robust reweighting of reference section 3.3 scales each pixel's R by the inverse of a
 Laplacian likelihood of its innovation norm.
+
+With ``finite_motion_correction`` (a deviation) the measured flow is first corrected by
+``h(x) - J x``, ``h`` the exact flow of the constant twist ``x`` over the interval
+(:func:`finite_motion_flow`), at the filter's own estimate (iterated EKF), so the linear model
+above holds at fast turns too.
 """
 
 from __future__ import annotations
@@ -62,8 +67,9 @@ class FlowMeasurement:
     """(N,) 1 / (number of the N pixels that read the same flow grid cell), or None (all 1)."""
     relinearize: Callable[[F64], F64] | None = None
     """``twist (6,) -> (N, 2)``: the measured flow [px] corrected for the finite motion at that
-    twist instead (``finite_motion_correction``); the filter calls it at its own first
-    estimate of the interval and updates with the result. None: ``y_px`` is final."""
+    twist instead (``finite_motion_correction``); the filter calls it at its own estimates of
+    the interval (:meth:`VelocityKF.relinearized`) and updates with the result. None: ``y_px``
+    is final."""
 
     def __len__(self) -> int:
         return int(self.y_px.shape[0])
