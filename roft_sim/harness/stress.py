@@ -366,6 +366,10 @@ class StressResult:
     """The fault presets, in order."""
     flows: tuple[str, ...]
     """The flow sources."""
+    interval_velocity: dict[str, Any] = field(default_factory=dict)
+    """Per sequence name, the :class:`~roft_sim.metrics.IntervalVelocityErrors` of its ground
+    truth: the e_v / e_w that the exact motion over each frame interval gives (what 30 fps
+    leaves of the velocity; docs/metrics.md "Interval velocity"). Empty: not computed."""
 
 
 def _nees_blocks(cells_dir: Path, cell: SweepCell, cache: dict[str, Any]) -> tuple[Any, Any]:
@@ -586,6 +590,14 @@ def run_stress(
     splits: dict[str, list[str]] = {}
     for name in names:
         splits.setdefault(split_of[name], []).append(name)
+    from roft_sim.datasets import open_sequence
+    from roft_sim.metrics import interval_velocity_errors
+
+    interval_velocity = {}
+    for name, path in zip(names, paths, strict=True):
+        truth = open_sequence(path).ground_truth()
+        if truth is not None:
+            interval_velocity[name] = interval_velocity_errors(truth)
     return StressResult(
         out_dir=out,
         size_name=size_name,
@@ -595,6 +607,7 @@ def run_stress(
         scores=scores,
         presets=tuple(faults),
         flows=tuple(flows),
+        interval_velocity=interval_velocity,
     )
 
 
@@ -630,6 +643,38 @@ def _rows(
     ]
 
 
+def _interval_velocity_table(split: str, names: Sequence[str], errors: dict[str, Any]) -> list[str]:
+    """The split's sequences' interval-velocity figures as a Markdown table (none if absent)."""
+    known = [n for n in names if n in errors]
+    if not known:
+        return []
+    out = [
+        f"### {split.upper()}: velocity from the exact interval motion (what 30 fps leaves)",
+        "",
+        "e_v [cm/s] and e_w [deg/s] of the exact motion over each frame interval taken as the "
+        "velocity at its end (held), carried half an interval forward (extrapolated), or the "
+        "last three intervals fitted to the truth itself (fitted; docs/metrics.md). A tracker's "
+        "e_v / e_w above are scored the same way.",
+        "",
+        "| sequence | e_v held | e_v extrapolated | e_v fitted | e_w held | e_w extrapolated "
+        "| e_w fitted |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for name in known:
+        e = errors[name]
+        values = (
+            e.held_v_cmps,
+            e.extrapolated_v_cmps,
+            e.fitted_v_cmps,
+            e.held_w_dps,
+            e.extrapolated_w_dps,
+            e.fitted_w_dps,
+        )
+        cells = [f"{v:.2f}" if math.isfinite(v) else "-" for v in values]
+        out.append(f"| {name} | " + " | ".join(cells) + " |")
+    return out + [""]
+
+
 def format_stress_report(
     result: StressResult, *, subject: str, baselines: Sequence[str], per_sequence: bool = True
 ) -> str:
@@ -661,6 +706,7 @@ def format_stress_report(
             out += _table(title + " and seeds", rows, "preset")
         rows = _rows(result.scores.per_flow, split, result.flows, result.trackers)
         out += _table(f"### {split.upper()}: per flow source (pooled over presets)", rows, "flow")
+        out += _interval_velocity_table(split, names, result.interval_velocity)
         if per_sequence:
             for name in names:
                 rows = _rows(result.scores.per_sequence, name, result.presets, result.trackers)

@@ -28,7 +28,7 @@ from roft_sim.harness.stress import (
     shipped_stress_config,
     stress_scenarios,
 )
-from roft_sim.metrics import evaluate_sequence
+from roft_sim.metrics import IntervalVelocityErrors, evaluate_sequence
 from roft_sim.trajectories import (
     CapturedMotionConfig,
     ContinuousMotionConfig,
@@ -259,5 +259,40 @@ def test_holdout_split_gets_its_tables_and_verdict_after_evaluation(tmp_path: Pa
     report = format_stress_report(result, subject="roft", baselines=baselines)
     assert "## HOLDOUT split: bvh-002_06" in report
     assert "### HOLDOUT sequence bvh-002_06" in report
+    assert "velocity from the exact interval motion" not in report  # not computed: no table
     verdict_lines = report.split("## Verdict")[1].strip().splitlines()
     assert verdict_lines[0].startswith(f"HOLDOUT, default inputs ({DEFAULT_FLOW}): roft beats")
+
+
+def test_report_sets_the_exact_interval_motion_beside_each_split(tmp_path: Path) -> None:
+    """``run_stress`` stores each sequence's interval-velocity figures; the report prints them
+    per split, one row per sequence, NaN as '-'."""
+    baselines = ["detector-hold", "pose-only-ukf"]
+    cells = [_fake_cell(tmp_path, t, DEFAULT_FLOW, 0.01) for t in ("roft", *baselines)]
+    scores = score_stress(
+        cells, tmp_path, {"bvh-002_06": "evaluation"}, subject="roft", baselines=baselines
+    )
+    figures = IntervalVelocityErrors(
+        held_v_cmps=5.11,
+        held_w_dps=19.91,
+        extrapolated_v_cmps=4.12,
+        extrapolated_w_dps=19.42,
+        fitted_v_cmps=3.05,
+        fitted_w_dps=float("nan"),
+        frames=117,
+    )
+    result = StressResult(
+        out_dir=tmp_path,
+        size_name="test",
+        trackers=("roft", *baselines),
+        notes=(),
+        splits={"evaluation": ["bvh-002_06"]},
+        scores=scores,
+        presets=("paper",),
+        flows=(DEFAULT_FLOW,),
+        interval_velocity={"bvh-002_06": figures},
+    )
+    report = format_stress_report(result, subject="roft", baselines=baselines)
+    section = report.split("### EVALUATION: velocity from the exact interval motion")[1]
+    row = next(line for line in section.splitlines() if line.startswith("| bvh-002_06 |"))
+    assert row == "| bvh-002_06 | 5.11 | 4.12 | 3.05 | 19.91 | 19.42 | - |"
