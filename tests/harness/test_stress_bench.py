@@ -152,6 +152,20 @@ def _fake_cell(cells_dir: Path, tracker: str, flow: str, offset_m: float) -> Swe
     return cell
 
 
+def _result(tmp_path, scores, split, baselines, flows) -> StressResult:
+    """A one-sequence (``bvh-002_06`` in ``split``), one-preset (``paper``) result."""
+    return StressResult(
+        out_dir=tmp_path,
+        size_name="test",
+        trackers=("roft", *baselines),
+        notes=(),
+        splits={split: ["bvh-002_06"]},
+        scores=scores,
+        presets=("paper",),
+        flows=flows,
+    )
+
+
 def test_verdict_on_the_default_inputs_comes_first_and_ignores_other_flows(
     tmp_path: Path,
 ) -> None:
@@ -177,16 +191,7 @@ def test_verdict_on_the_default_inputs_comes_first_and_ignores_other_flows(
     assert "paper: ADD-AUC" in scores.verdicts["evaluation"].fails[0]
     roft_default = scores.pooled_default[("evaluation", "roft", "paper")]
     assert roft_default["rmse_t_cm"] == pytest.approx(1.0)
-    result = StressResult(
-        out_dir=tmp_path,
-        size_name="test",
-        trackers=("roft", *baselines),
-        notes=(),
-        splits={"evaluation": ["bvh-002_06"]},
-        scores=scores,
-        presets=("paper",),
-        flows=(DEFAULT_FLOW, "gt+noise:1"),
-    )
+    result = _result(tmp_path, scores, "evaluation", baselines, (DEFAULT_FLOW, "gt+noise:1"))
     report = format_stress_report(result, subject="roft", baselines=baselines)
     verdict_lines = report.split("## Verdict")[1].strip().splitlines()
     assert verdict_lines[0] == (
@@ -246,16 +251,7 @@ def test_holdout_split_gets_its_tables_and_verdict_after_evaluation(tmp_path: Pa
         cells, tmp_path, {"bvh-002_06": "holdout"}, subject="roft", baselines=baselines
     )
     assert scores.default_verdicts["holdout"].wins == ["paper"]
-    result = StressResult(
-        out_dir=tmp_path,
-        size_name="test",
-        trackers=("roft", *baselines),
-        notes=(),
-        splits={"holdout": ["bvh-002_06"]},
-        scores=scores,
-        presets=("paper",),
-        flows=(DEFAULT_FLOW,),
-    )
+    result = _result(tmp_path, scores, "holdout", baselines, (DEFAULT_FLOW,))
     report = format_stress_report(result, subject="roft", baselines=baselines)
     assert "## HOLDOUT split: bvh-002_06" in report
     assert "### HOLDOUT sequence bvh-002_06" in report
@@ -272,24 +268,15 @@ def test_report_sets_the_exact_interval_motion_beside_each_split(tmp_path: Path)
     scores = score_stress(
         cells, tmp_path, {"bvh-002_06": "evaluation"}, subject="roft", baselines=baselines
     )
+    v = {"held": 5.11, "extrapolated": 4.12, "fitted": 3.05}  # cm/s
+    w = {"held": 19.91, "extrapolated": 19.42, "fitted": float("nan")}  # deg/s
     figures = IntervalVelocityErrors(
-        held_v_cmps=5.11,
-        held_w_dps=19.91,
-        extrapolated_v_cmps=4.12,
-        extrapolated_w_dps=19.42,
-        fitted_v_cmps=3.05,
-        fitted_w_dps=float("nan"),
+        **{f"{k}_v_cmps": x for k, x in v.items()},
+        **{f"{k}_w_dps": x for k, x in w.items()},
         frames=117,
     )
-    result = StressResult(
-        out_dir=tmp_path,
-        size_name="test",
-        trackers=("roft", *baselines),
-        notes=(),
-        splits={"evaluation": ["bvh-002_06"]},
-        scores=scores,
-        presets=("paper",),
-        flows=(DEFAULT_FLOW,),
+    result = dataclasses.replace(
+        _result(tmp_path, scores, "evaluation", baselines, (DEFAULT_FLOW,)),
         interval_velocity={"bvh-002_06": figures},
     )
     report = format_stress_report(result, subject="roft", baselines=baselines)
