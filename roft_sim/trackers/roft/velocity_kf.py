@@ -29,7 +29,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.stats import chi2
 
-from roft_sim.geometry.camera import CameraIntrinsics
+from roft_sim.geometry.camera import CameraIntrinsics, backproject_pixels, project_points
 from roft_sim.geometry.so3 import matrix_from_rotvec, so3_left_jacobian
 from roft_sim.records import FlowField
 from roft_sim.trackers.roft.config import VelocityKFConfig
@@ -113,17 +113,12 @@ def finite_motion_flow(
     with the constant spatial twist ``(v_o [m/s], w [rad/s])`` for ``dt_s`` [s]: each point
     ``P`` goes to ``exp(dt (v_o, w)) P = R P + J_l(w dt) v_o dt`` (``R = exp([w dt]x)``); the
     finite counterpart of :func:`flow_jacobian` (NaN where a point ends behind the camera)."""
-    fx, fy = intrinsics.fx_px, intrinsics.fy_px
-    cx, cy = intrinsics.cx_px, intrinsics.cy_px
-    u = np.asarray(u_px, dtype=np.float64)
-    v = np.asarray(v_px, dtype=np.float64)
-    z = np.asarray(z_m, dtype=np.float64)
+    uv = np.stack([np.asarray(u_px, dtype=np.float64), np.asarray(v_px, dtype=np.float64)], -1)
     x = np.asarray(twist, dtype=np.float64)
     rotvec = x[3:] * dt_s
-    P = np.stack([(u - cx) / fx * z, (v - cy) / fy * z, z], axis=-1)
+    P = backproject_pixels(intrinsics, uv, z_m)
     moved = P @ matrix_from_rotvec(rotvec).T + so3_left_jacobian(rotvec) @ (x[:3] * dt_s)
-    depth = np.where(moved[..., 2] > 0.0, moved[..., 2], np.nan)
-    return np.stack([fx * moved[..., 0] / depth + cx - u, fy * moved[..., 1] / depth + cy - v], -1)
+    return project_points(intrinsics, moved) - uv
 
 
 _FINITE_MOTION_MIN_PIXELS = 6
@@ -143,24 +138,13 @@ def _finite_motion_corrected(
     y: F64,
     J: F64,
     dt_s: float,
-    twist: F64 | None,
+    twist: F64,
 ) -> F64:
-    """The flow ``y`` (N, 2) [px] less ``h(x) - J x`` (VelocityKFConfig.finite_motion_correction)
-    at ``x = twist`` (6,), or with None at the least-squares twist of the corrected flow, re-fitted
-    ``_FINITE_MOTION_FITS`` times from the linear model's; ``y`` unchanged if ``h`` is not
-    finite (a point carried behind the camera)."""
-    corrected = y
-    for _ in range(1 if twist is not None else _FINITE_MOTION_FITS):
-        x = (
-            twist
-            if twist is not None
-            else np.linalg.lstsq(J.reshape(-1, 6), corrected.reshape(-1), rcond=None)[0]
-        )
-        correction = finite_motion_flow(intrinsics, u, v, z, x, dt_s) - J @ x
-        if not np.isfinite(correction).all():
-            return y
-        corrected = y - correction
-    return corrected
+    """The flow ``y`` (N, 2) [px] less ``h(x) - J x`` at ``x = twist`` (6,)
+    (VelocityKFConfig.finite_motion_correction); ``y`` unchanged if ``h`` is not finite (a
+    point carried behind the camera)."""
+    correction = finite_motion_flow(intrinsics, u, v, z, twist, dt_s) - J @ twist
+    return y - correction if np.isfinite(correction).all() else y
 
 
 _OCCLUDER_MIN_PIXELS = 12
@@ -354,8 +338,13 @@ def flow_measurement(
         y = corrected_at(np.asarray(linearization_twist, dtype=np.float64))
         relinearize = corrected_at
     elif config.finite_motion_correction and u.size >= _FINITE_MOTION_MIN_PIXELS:
-        # no filter estimate yet: at the pixels' own least-squares twist, re-fitted
-        y = _finite_motion_corrected(intrinsics, u, v, z, y, J, dt_s, None)
+        # no filter estimate yet: at the pixels' own least-squares twist, re-fitted on the
+        # corrected flow
+        measured = y
+        for _ in range(_FINITE_MOTION_FITS):
+            fit = np.linalg.lstsq(J.reshape(-1, 6), y.reshape(-1), rcond=None)[0]
+            twist = np.asarray(fit, dtype=np.float64)
+            y = _finite_motion_corrected(intrinsics, u, v, z, measured, J, dt_s, twist)
     cell_weight = None
     if config.independent_pixels_per_cell and flow.grid_px > 1 and u.size:
         g = flow.grid_px
