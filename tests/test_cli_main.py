@@ -51,3 +51,15 @@ def test_logging_follows_the_current_stderr(monkeypatch):
 def test_python_dash_m_runs_the_cli(argv):
     out = subprocess.run([sys.executable, *argv], capture_output=True, text=True, check=True)
     assert out.stdout.startswith("roft-sim ")
+
+
+def test_importing_the_cli_leaves_trimesh_and_the_network_modules_out():
+    """Every verb imports roft_sim.cli: trimesh (0.2-0.5 s, only needed to read mesh files) and
+    the download modules of ``assets install`` load only in the code that uses them."""
+    code = (
+        "import sys, roft_sim.cli\n"
+        "print(sorted(m for m in ('trimesh', 'http.client', 'urllib.request', 'tarfile')"
+        " if m in sys.modules))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"

@@ -16,27 +16,27 @@ place).
 from __future__ import annotations
 
 import hashlib
-import http.client
 import json
 import logging
 import os
 import re
 import shutil
 import stat
-import tarfile
 import tempfile
-import urllib.error
-import urllib.request
 import zipfile
 import zlib
 from collections.abc import Mapping, Sequence
 from datetime import UTC, datetime
 from pathlib import Path, PurePosixPath
+from typing import TYPE_CHECKING
 
 from roft_sim.assets.meshes import mtl_texture_path
 from roft_sim.assets.objects import install_hint
 from roft_sim.assets.registry import get_object_info, object_registry
 from roft_sim.errors import AssetNotFoundError, ConfigError, DatasetFormatError, located
+
+if TYPE_CHECKING:  # tarfile and the network modules are imported where they are used: every
+    import tarfile  # importer of roft_sim.assets (generation, the CLI) would pay for them
 
 __all__ = [
     "OFFICIAL_YCB_BASE_URL",
@@ -161,6 +161,8 @@ def safe_extract(archive: Path, destination: Path) -> None:
     Raises:
         DatasetFormatError: unsafe member, unknown format, or a corrupt or truncated archive.
     """
+    import tarfile
+
     destination.mkdir(parents=True, exist_ok=True)
     corrupt = (tarfile.TarError, zipfile.BadZipFile, EOFError, zlib.error, OSError)
     try:
@@ -206,6 +208,10 @@ def _sha256_file(path: Path) -> str:
 
 def _download(url: str, target: Path, *, progress: bool, timeout_s: float = 60.0) -> str:
     """Streams ``url`` into ``target``; returns the SHA-256 of the bytes received."""
+    import http.client
+    import urllib.error
+    import urllib.request
+
     digest = hashlib.sha256()
     request = urllib.request.Request(url, headers={"User-Agent": "roft-sim"})
     try:

@@ -13,13 +13,16 @@ import logging
 import shlex
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
-import trimesh
 from numpy.typing import NDArray
 
 from roft_sim.errors import AssetNotFoundError, DatasetFormatError, located
+
+if TYPE_CHECKING:  # trimesh is imported where a mesh file is read: it takes 0.1-0.5 s
+    import trimesh
 
 F64 = NDArray[np.float64]
 U8 = NDArray[np.uint8]
@@ -34,6 +37,7 @@ __all__ = [
     "model_point_seed",
     "sample_surface_points",
     "geometry_mesh",
+    "GEOMETRY_MERGE_DIGITS",
     "freeze_arrays",
 ]
 
@@ -86,6 +90,8 @@ class TexturedMesh:
 
     def to_trimesh(self) -> trimesh.Trimesh:
         """The geometry as a ``trimesh.Trimesh`` (no texture; vertices not merged)."""
+        import trimesh
+
         return trimesh.Trimesh(self.vertices_m, self.faces, process=False)
 
     def sample_texture(self, uv: F64) -> U8:
@@ -104,15 +110,42 @@ def freeze_arrays(*arrays: np.ndarray) -> None:
         a.flags.writeable = False
 
 
+GEOMETRY_MERGE_DIGITS = 8
+"""Vertices whose coordinates agree to this many decimals (of a metre) are merged by
+:func:`geometry_mesh` (trimesh's ``tol.merge`` of 1e-8)."""
+
+
 def geometry_mesh(vertices_m: F64, faces: I64) -> tuple[F64, I64]:
     """Merges vertices that share a position (UV seams) into one geometric mesh.
+
+    What ``trimesh``'s ``merge_vertices(merge_tex=True, merge_norm=True)`` gives (tested
+    against it), without importing trimesh: positions rounded to
+    :data:`GEOMETRY_MERGE_DIGITS` decimals are equal; each kept vertex is the first of its
+    group, in the order of first occurrence among the vertices that faces use; vertices no
+    face uses are dropped (when there are faces).
 
     Returns:
         ``(vertices_m (V', 3), faces (F, 3) int64)``; faces keep their order and orientation.
     """
-    mesh = trimesh.Trimesh(vertices_m, faces, process=False)
-    mesh.merge_vertices(merge_tex=True, merge_norm=True)
-    return np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces, dtype=np.int64)
+    vertices = np.asarray(vertices_m, dtype=np.float64)
+    faces = np.asarray(faces, dtype=np.int64)
+    if len(vertices) == 0:
+        return vertices.copy(), faces.copy()
+    used = np.zeros(len(vertices), dtype=bool)
+    if len(faces):
+        used[faces] = True
+    else:
+        used[:] = True
+    rounded = np.round(vertices[used] * 10**GEOMETRY_MERGE_DIGITS).astype(np.int64)
+    rows = np.ascontiguousarray(rounded).view(np.dtype((np.void, rounded.itemsize * 3)))
+    _, first, group = np.unique(rows.reshape(-1), return_index=True, return_inverse=True)
+    order = first.argsort()  # groups in the order of their first vertex
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    new_index = np.zeros(len(vertices), dtype=np.int64)
+    new_index[used] = rank[group.reshape(-1)]
+    kept = np.flatnonzero(used)[first[order]]
+    return vertices[kept], new_index[faces]
 
 
 def model_point_seed(name: str) -> int:
@@ -231,6 +264,8 @@ def read_mesh_file(path: Path) -> tuple[F64, I64, F64 | None]:
             f"mesh file {located(path)} has suffix {path.suffix!r}; expected one of "
             f"{', '.join(MESH_SUFFIXES)}"
         )
+    import trimesh
+
     try:
         mesh = trimesh.load_mesh(str(path), process=False)
     except Exception as e:  # trimesh raises many types on malformed files

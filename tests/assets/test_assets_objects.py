@@ -21,7 +21,9 @@ from roft_sim.assets import (
     model_point_seed,
     sample_surface_points,
 )
+from roft_sim.assets.meshes import geometry_mesh, read_mesh_file
 from roft_sim.assets.objects import _clear_caches, find_ycb_mesh
+from roft_sim.assets.procedural import stand_in_mesh
 from roft_sim.errors import ConfigError
 from roft_sim.testing.mesh_oracles import closest_point_on_triangles
 
@@ -92,6 +94,45 @@ def test_surface_sample_is_area_uniform():
     # uniform inside a face: the mean of the points on the +z face is its centre
     top = points[np.isclose(points[:, 2], 0.01)]
     np.testing.assert_allclose(top[:, :2].mean(axis=0), 0.0, atol=5 * 0.3 / np.sqrt(12 * len(top)))
+
+
+def _trimesh_merged(vertices_m, faces):
+    mesh = trimesh.Trimesh(vertices_m, faces, process=False)
+    mesh.merge_vertices(merge_tex=True, merge_norm=True)
+    return np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces, dtype=np.int64)
+
+
+def _assert_same_bytes(ours, oracle):
+    for a, b in zip(ours, oracle, strict=True):
+        assert a.dtype == b.dtype and a.shape == b.shape
+        assert a.tobytes() == b.tobytes()
+
+
+def test_geometry_mesh_is_trimeshs_merge_vertices_bit_for_bit():
+    """geometry_mesh (numpy, so loading a stand-in does not import trimesh) gives exactly what
+    the trimesh call it replaces gives: the same vertices, in the same order, and faces; model
+    points, and every dataset's model files, depend on both."""
+    for info in list_objects():
+        atlas = stand_in_mesh(info)
+        _assert_same_bytes(
+            geometry_mesh(atlas.vertices_m, atlas.faces),
+            _trimesh_merged(atlas.vertices_m, atlas.faces),
+        )
+    rng = np.random.default_rng(5)
+    # a coarse grid with sub-1e-8 m jitter (merged), some 1e-7 m offsets (kept apart), and
+    # vertices that no face uses (dropped)
+    vertices = rng.integers(-4, 5, (400, 3)) * 0.01 + rng.normal(0.0, 1e-10, (400, 3))
+    vertices[::7] += 1e-7
+    faces = rng.integers(0, 300, (250, 3))
+    _assert_same_bytes(geometry_mesh(vertices, faces), _trimesh_merged(vertices, faces))
+    no_faces = np.zeros((0, 3), dtype=np.int64)
+    _assert_same_bytes(geometry_mesh(vertices, no_faces), _trimesh_merged(vertices, no_faces))
+
+
+def test_geometry_mesh_of_real_meshes_is_trimeshs(shared_ycb_dir):
+    for obj in sorted(shared_ycb_dir.glob("*/textured.obj"))[:2]:
+        vertices, faces, _ = read_mesh_file(obj)
+        _assert_same_bytes(geometry_mesh(vertices, faces), _trimesh_merged(vertices, faces))
 
 
 # ------------------------------------------------------------------------------ real meshes
