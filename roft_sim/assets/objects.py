@@ -39,9 +39,8 @@ from roft_sim.assets.meshes import (
 )
 from roft_sim.assets.procedural import AtlasMesh, projected_atlas, stand_in_mesh
 from roft_sim.assets.registry import ObjectInfo, UnknownObjectError, object_registry
+from roft_sim.assets.texture_cache import load_cached_image, save_cached_image
 from roft_sim.assets.textures import TEXTURE_GENERATOR_VERSION, procedural_texture
-from roft_sim.datasets.atomic_files import atomic_write_bytes
-from roft_sim.datasets.image_files import encode_png_rgb
 from roft_sim.errors import AssetNotFoundError, ConfigError, DatasetFormatError, located
 from roft_sim.records import ObjectModel
 
@@ -304,11 +303,12 @@ def _load_ycb_cached(
 def _texture_cache_path(
     cache_dir: Path, label: str, params: dict[str, object], shape: tuple[int, int]
 ) -> Path:
+    """The cache file of a procedural texture (``.npy``; earlier versions wrote ``.png``)."""
     digest = hashlib.sha256(json.dumps(params, sort_keys=True).encode()).hexdigest()[:16]
     return (
         cache_dir
         / "procedural"
-        / f"{label}-v{TEXTURE_GENERATOR_VERSION}-{shape[1]}x{shape[0]}-{digest}.png"
+        / f"{label}-v{TEXTURE_GENERATOR_VERSION}-{shape[1]}x{shape[0]}-{digest}.npy"
     )
 
 
@@ -321,7 +321,7 @@ def _atlas_texture(
     max_texture_px: int,
     cache_dir: Path | None,
 ) -> NDArray[np.uint8]:
-    """The procedural texture for ``atlas``, from the PNG cache when present."""
+    """The procedural texture for ``atlas``, from the cache when present."""
     shape = atlas.texture_shape(max_texture_px)
     px_per_mm = max(shape) / max(atlas.atlas_size_m) / 1000.0
     params = {
@@ -337,11 +337,14 @@ def _atlas_texture(
         "shape": list(shape),
     }
     path = _texture_cache_path(cache_dir, label, params, shape) if cache_dir else None
-    if path is not None and path.is_file():
-        image = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    if path is not None:
+        image = load_cached_image(path)
         if image is not None and image.shape[:2] == shape:
-            return np.ascontiguousarray(image[:, :, ::-1])
-        _log.warning("ignoring unreadable cached texture %s; generating it again", path)
+            return image
+        if image is not None:
+            _log.warning(
+                "ignoring the cached texture %s of another size; generating it again", path
+            )
     texture = procedural_texture(
         np.asarray(palette_rgb, dtype=np.uint8),
         np.asarray(weights, dtype=np.float64),
@@ -351,7 +354,7 @@ def _atlas_texture(
     )
     if path is not None:
         try:
-            atomic_write_bytes(path, encode_png_rgb(texture))
+            save_cached_image(path, texture, legacy=path.with_suffix(".png"))
         except OSError as e:  # a read-only cache must not stop the simulation
             _log.warning("could not cache the procedural texture at %s: %s", path, e)
     return texture

@@ -277,7 +277,7 @@ def test_untextured_files_get_a_projected_procedural_texture(tmp_path, suffix, s
     assert assets.mesh.uv.min() >= 0 and assets.mesh.uv.max() <= 1
     assert max(assets.mesh.texture_rgb.shape[:2]) == 64
     assert assets.mesh.texture_rgb.std() > 10
-    assert list((tmp_path / "cache" / "procedural").glob("file-ball-*.png"))
+    assert list((tmp_path / "cache" / "procedural").glob("file-ball-*.npy"))
     d = surface_distance(mesh.vertices, mesh.faces, assets.model.model_points_m)
     assert d.max() < 1e-8  # STL stores float32
 

@@ -17,6 +17,7 @@ from roft_sim.assets.procedural import (
     projected_atlas,
     stand_in_mesh,
 )
+from roft_sim.assets.texture_cache import load_cached_image
 from roft_sim.assets.textures import procedural_texture
 
 NAMES = [info.name for info in list_objects()]
@@ -209,16 +210,25 @@ def test_texture_cache_round_trip_and_recovery(tmp_path):
     from roft_sim.assets.objects import _clear_caches
 
     a = load_object("009_gelatin_box", cache_dir=tmp_path, max_texture_px=SMALL_TEXTURE_PX)
-    (png,) = (tmp_path / "procedural").glob("009_gelatin_box-v*.png")
+    (entry,) = (tmp_path / "procedural").glob("009_gelatin_box-v*.npy")
+    np.testing.assert_array_equal(load_cached_image(entry), a.mesh.texture_rgb)
     _clear_caches()
     b = load_object("009_gelatin_box", cache_dir=tmp_path, max_texture_px=SMALL_TEXTURE_PX)
     np.testing.assert_array_equal(a.mesh.texture_rgb, b.mesh.texture_rgb)
     # a damaged cache file is replaced, not trusted
-    png.write_bytes(b"not a png")
+    entry.write_bytes(b"not an npy file")
     _clear_caches()
     c = load_object("009_gelatin_box", cache_dir=tmp_path, max_texture_px=SMALL_TEXTURE_PX)
     np.testing.assert_array_equal(a.mesh.texture_rgb, c.mesh.texture_rgb)
-    assert cv2.imread(str(png)) is not None
+    np.testing.assert_array_equal(load_cached_image(entry), a.mesh.texture_rgb)
+    # an entry of the earlier PNG format is not read; writing the entry again removes it
+    legacy = entry.with_suffix(".png")
+    legacy.write_bytes(b"an old PNG entry")
+    entry.unlink()
+    _clear_caches()
+    d = load_object("009_gelatin_box", cache_dir=tmp_path, max_texture_px=SMALL_TEXTURE_PX)
+    np.testing.assert_array_equal(a.mesh.texture_rgb, d.mesh.texture_rgb)
+    assert entry.is_file() and not legacy.exists()
 
 
 def test_arrays_are_read_only():
@@ -243,4 +253,4 @@ def test_texture_cache_is_keyed_by_the_numpy_and_opencv_versions(tmp_path, monke
     _clear_caches()
     load_object("009_gelatin_box", cache_dir=tmp_path, max_texture_px=SMALL_TEXTURE_PX)
     _clear_caches()
-    assert len(list((tmp_path / "procedural").glob("009_gelatin_box-v*.png"))) == 3
+    assert len(list((tmp_path / "procedural").glob("009_gelatin_box-v*.npy"))) == 3

@@ -263,7 +263,7 @@ def test_cached_scene_textures_give_the_same_bytes_cold_and_warm(scenario, refer
     for run in ("cold", "warm"):
         run_generate([scenario], tmp_path / run, cache_dir=cache)
         assert tree_hashes(tmp_path / run) == reference, run
-    assert len(list((cache / "textures").glob("*.png"))) == 2  # the table and the wall
+    assert len(list((cache / "textures").glob("*.npy"))) == 2  # the table and the wall
 
 
 def test_png_compression_changes_the_bytes_not_the_images_and_a_resume_keeps_it(
