@@ -12,6 +12,7 @@ from scipy.special import gamma
 from roft_sim.assets import get_object_info, list_objects, load_object
 from roft_sim.assets.procedural import (
     MAX_CHART_STRETCH,
+    _shelf_pack,
     box_mesh,
     lofted_mesh,
     projected_atlas,
@@ -254,3 +255,32 @@ def test_texture_cache_is_keyed_by_the_numpy_and_opencv_versions(tmp_path, monke
     load_object("009_gelatin_box", cache_dir=tmp_path, max_texture_px=SMALL_TEXTURE_PX)
     _clear_caches()
     assert len(list((tmp_path / "procedural").glob("009_gelatin_box-v*.npy"))) == 3
+
+
+def _shelf_pack_numpy(padded, row_width):
+    """The shelf packing on numpy scalars, as it was first written: the oracle of the faster
+    float loop (the atlas layout, hence every stand-in's UVs, depends on it bit for bit)."""
+    order = np.argsort(-padded[:, 1], kind="stable")
+    offsets = np.zeros_like(padded)
+    x = y = row_h = used_w = 0.0
+    for i in order:
+        w, h = padded[i]
+        if x > 0 and x + w > row_width + 1e-12:
+            y, x, row_h = y + row_h, 0.0, 0.0
+        offsets[i] = (x, y)
+        x += w
+        row_h = max(row_h, h)
+        used_w = max(used_w, x)
+    return offsets, used_w, y + row_h
+
+
+def test_shelf_packing_is_the_numpy_scalar_loop_bit_for_bit():
+    rng = np.random.default_rng(4)
+    for n in (1, 2, 6, 11):
+        padded = rng.uniform(0.005, 0.3, (n, 2))
+        padded[n // 2] = padded[0]  # equal heights: the stable order matters
+        for row_width in np.linspace(padded[:, 0].max(), padded[:, 0].sum(), 48):
+            got, expected = _shelf_pack(padded, row_width), _shelf_pack_numpy(padded, row_width)
+            assert got[0].tobytes() == expected[0].tobytes()
+            for a, b in zip(got[1:], expected[1:], strict=True):
+                assert type(a) is type(b) and a == b  # numpy scalars: the caller rounds them
