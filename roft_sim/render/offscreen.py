@@ -5,7 +5,10 @@ that, unlike ``mujoco.Renderer``, reads rgb and depth from ONE render pass, conv
 reversed-Z depth buffer to z-depth in metres (0 = nothing) here and nowhere else, and returns
 segmentation as geom ids (-1 = background).
 
-The colour pass uses the model's multisampling (``vis.quality.offsamples``) and, if asked, shadows.
+The colour pass uses the model's multisampling (``vis.quality.offsamples``) and, if asked, shadows
+(which need the model's shadow map, ``vis.quality.shadowsize`` > 0: MuJoCo allocates it in every
+context, so the scene builder leaves it out of scenes without shadows, and the segmentation pass's
+context never has one).
 Depth and segmentation come from MuJoCo's segmentation pass (flat colours, no lighting), which
 MuJoCo renders without blending samples, so every pixel's depth belongs to the geom its id names.
 That pass is drawn into a second, single-sample framebuffer (a second ``MjrContext`` made with
@@ -130,15 +133,17 @@ class OffscreenRenderer:
         if self._model.vis.quality.offsamples <= 0:
             return self._ctx
         if self._flat_ctx is None:
+            # single-sample, and without a shadow map (the pass casts no shadows; MuJoCo
+            # allocates a shadowsize x shadowsize depth texture in every context)
             quality = self._model.vis.quality
-            samples = quality.offsamples
-            quality.offsamples = 0
+            samples, shadow_px = quality.offsamples, quality.shadowsize
+            quality.offsamples = quality.shadowsize = 0
             try:
                 self._flat_ctx = self._make_context(self._model)
             except (mujoco.FatalError, RuntimeError, AttributeError) as e:
                 raise context_error(e) from e
             finally:
-                quality.offsamples = samples
+                quality.offsamples, quality.shadowsize = samples, shadow_px
         return self._flat_ctx
 
     @property
@@ -182,10 +187,18 @@ class OffscreenRenderer:
             rgb: produce the colour image.
             depth: produce z-depth.
             segmentation: produce geom ids.
-            shadows: cast shadows in the colour pass.
+            shadows: cast shadows in the colour pass (the model needs a shadow map).
+
+        Raises:
+            ConfigError: ``shadows`` with a model whose ``vis.quality.shadowsize`` is 0.
         """
         if self._ctx is None or self._gl is None:
             raise RuntimeError("OffscreenRenderer used after close()")
+        if shadows and rgb and self._ctx.shadowSize <= 0:
+            raise ConfigError(
+                "shadows asked for, but the model has no shadow map (vis.quality.shadowsize = 0); "
+                "build the scene with RenderConfig(shadows=True)"
+            )
         self._gl.make_current()
         flags = self._scene.flags
         multisampled = self._model.vis.quality.offsamples > 0
