@@ -540,8 +540,7 @@ class VelocityKF:
             self.updates += 1
             return True
         self.updates += 1
-        x_pred = self.x
-        P_pred = self.P + np.diag(self.q_diag * max(frames, 1e-9))
+        x_pred, P_pred = self._interval_prior(frames, t_s, dt_s)
         innovation, lik, R, (dx, P_post) = self._robust_weights(measurement, x_pred, P_pred)
         J2 = measurement.J.reshape(-1, 6)
         if cfg.adapt_flow_noise:
@@ -593,18 +592,26 @@ class VelocityKF:
         estimate of the interval (the robust update from the predicted interval mean, twice:
         iterated-EKF steps; nothing of the filter changes) and ``relinearize`` cleared.
         :meth:`step` calls it when the measurement can be relinearised."""
-        if self._config.motion_model == "constant_acceleration" and t_s is not None and dt_s:
-            X_pred, P_X = self._predict_constant_acceleration(t_s, dt_s)
-            M = np.hstack([np.eye(6), -0.5 * dt_s * np.eye(6)])  # interval mean of X
-            x_pred, P_pred = M @ X_pred, M @ P_X @ M.T
-        else:
-            x_pred, P_pred = self.x, self.P + np.diag(self.q_diag * max(frames, 1e-9))
+        x_pred, P_pred = self._interval_prior(frames, t_s, dt_s)
         relinearize = measurement.relinearize
         assert relinearize is not None  # checked by the caller
         for _ in range(_RELINEARIZATIONS):
             dx = self._robust_weights(measurement, x_pred, P_pred)[3][0]
             measurement = dataclasses.replace(measurement, y_px=relinearize(x_pred + dx))
         return dataclasses.replace(measurement, relinearize=None)
+
+    def _interval_prior(
+        self, frames: float, t_s: float | None, dt_s: float | None
+    ) -> tuple[F64, F64]:
+        """The predicted interval-mean twist (6,) and its covariance (6, 6) that the flow of the
+        interval ``(t_s - dt_s, t_s]`` is weighed against: ``x`` and ``P`` plus ``frames``
+        frames of Q for the constant model; ``M X-`` and ``M P- M^T`` for
+        ``constant_acceleration`` (constant-model form without the times)."""
+        if self._config.motion_model == "constant_acceleration" and t_s is not None and dt_s:
+            X_pred, P_X = self._predict_constant_acceleration(t_s, dt_s)
+            M = _interval_mean_map(dt_s)
+            return M @ X_pred, M @ P_X @ M.T
+        return self.x, self.P + np.diag(self.q_diag * max(frames, 1e-9))
 
     def predicted_interval_mean(self, t_s: float, dt_s: float) -> F64:
         """The mean twist (6,) [m/s, rad/s] this filter predicts for the interval
@@ -676,8 +683,7 @@ class VelocityKF:
         """
         cfg = self._config
         X_pred, P_pred = self._predict_constant_acceleration(t_s, dt_s)
-        eye = np.eye(6)
-        M = np.hstack([eye, -0.5 * dt_s * eye])  # (6, 12): state -> interval-mean twist
+        M = _interval_mean_map(dt_s)
         mean_pred = M @ X_pred
         P_mean = M @ P_pred @ M.T
         # the constant model's weights and flow noise, with the interval mean as the prior
@@ -719,6 +725,13 @@ class VelocityKF:
         P = M @ self.P_X @ M.T
         self.P = 0.5 * (P + P.T)
         self.x_frame = self.X[:6].copy()
+
+
+def _interval_mean_map(dt_s: float) -> F64:
+    """``M`` (6, 12): the ``constant_acceleration`` state (twist at the interval's end, its
+    rate) to the mean twist over the interval of ``dt_s`` [s], ``twist - rate dt_s / 2``."""
+    eye = np.eye(6)
+    return np.hstack([eye, -0.5 * dt_s * eye])
 
 
 def _least_squares(J2: F64, W: F64, innovation: F64, x_prior: F64) -> tuple[F64, F64] | None:
