@@ -6,6 +6,8 @@ motion, a hand occluder, a moving camera and noisy flow (issue 14; docs/running.
     python benchmarks/bench_robustness.py --full --out stress-full --workers 16 \
         --trajectories ../shared/trajectories
     python benchmarks/bench_robustness.py --holdout --medium --out stress-holdout --workers 2
+    python benchmarks/bench_robustness.py --holdout --medium --random-mixes 30 --out mixes \
+        --workers 2
 
 Reads the shipped ``scenarios/sweeps/stress.toml`` (or ``--config``; ``--holdout`` reads the
 shipped ``stress_holdout.toml``: captured windows and joints, objects and seeds that neither
@@ -15,14 +17,17 @@ into ``OUT/data`` (reused by later runs), runs the grid with the sweep machinery
 ``OUT/grid`` (parallel, resumable: run the same command again to continue), and prints, per
 split (TUNING, EVALUATION, HOLDOUT, named), trackers x presets x metrics pooled over sequences,
 flows and seeds, per flow source, per sequence, and the verdict line. The report is also written
-to ``OUT/report.md``. Captured sequences need the shared trajectories folder
-(``--trajectories``, else ``$ROFT_SIM_TRAJECTORIES``, else ``../shared/trajectories`` beside the
-repository); without it they are skipped with a note.
+to ``OUT/report.md``. ``--random-mixes N`` replaces the size's fault presets by N random fault
+mixes (seeds ``--mix-seed`` .. ``--mix-seed + N - 1``, written to ``OUT/mixes/``;
+docs/faults.md, "Random mixes"): a verdict on fault mixes nobody tuned on. Captured sequences
+need the shared trajectories folder (``--trajectories``, else ``$ROFT_SIM_TRAJECTORIES``, else
+``../shared/trajectories`` beside the repository); without it they are skipped with a note.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import logging
 import os
 import sys
@@ -30,7 +35,9 @@ import time
 from pathlib import Path
 
 from roft_sim.cli.trajectory import trajectories_dir_from_args
+from roft_sim.datasets.atomic_files import atomic_write_text
 from roft_sim.executors import LocalProcessExecutor
+from roft_sim.faults.random_mix import fault_mix_toml, random_fault_mix, random_mix_name
 from roft_sim.harness.stress import (
     format_stress_report,
     load_stress_config,
@@ -39,6 +46,18 @@ from roft_sim.harness.stress import (
     shipped_stress_config,
 )
 from roft_sim.render.gl_backend import select_gl_backend
+
+
+def write_random_mixes(folder: Path, seeds: range) -> tuple[str, ...]:
+    """Writes the random fault mix of each seed to ``folder/mix-<seed>.toml`` (the same file
+    on every run); returns their paths, the fault specs of the grid."""
+    folder.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for seed in seeds:
+        path = folder / f"{random_mix_name(seed)}.toml"
+        atomic_write_text(path, fault_mix_toml(random_fault_mix(seed)))
+        paths.append(str(path.resolve()))
+    return tuple(paths)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -59,7 +78,20 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--workers", type=int, default=1, help="local worker processes")
     parser.add_argument("--no-per-sequence", action="store_true", help="pooled tables only")
     parser.add_argument("--progress", action="store_true", help="progress bar")
+    parser.add_argument(
+        "--random-mixes",
+        type=int,
+        metavar="N",
+        help="run N random fault mixes (roft-sim faults random) instead of the size's presets",
+    )
+    parser.add_argument(
+        "--mix-seed", type=int, default=1000, help="seed of the first random mix (default 1000)"
+    )
     args = parser.parse_args(argv)
+    if args.random_mixes is not None and args.random_mixes < 1:
+        parser.error(f"--random-mixes must be >= 1, got {args.random_mixes}")
+    if args.mix_seed < 0:
+        parser.error(f"--mix-seed must be >= 0, got {args.mix_seed}")
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     select_gl_backend(os.environ)
     config_path = args.config or (
@@ -77,6 +109,9 @@ def main(argv: list[str] | None = None) -> int:
             "skipped (pass --trajectories DIR)",
             file=sys.stderr,
         )
+    if args.random_mixes:
+        seeds = range(args.mix_seed, args.mix_seed + args.random_mixes)
+        size = dataclasses.replace(size, faults=write_random_mixes(args.out / "mixes", seeds))
     executor = LocalProcessExecutor(args.workers) if args.workers > 1 else None
     t0 = time.perf_counter()
     result = run_stress(

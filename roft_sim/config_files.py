@@ -21,6 +21,8 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import enum
+import json
+import math
 import re
 import tomllib
 import types
@@ -42,6 +44,7 @@ NONE_SPELLING = "none"
 
 __all__ = [
     "load_toml",
+    "toml_value",
     "dataclass_from_mapping",
     "load_dataclass_toml",
     "jsonable",
@@ -313,3 +316,27 @@ def jsonable(obj: Any) -> Any:
     if isinstance(obj, np.generic):
         return obj.item()
     return obj
+
+
+def toml_value(value: Any) -> str:
+    """A TOML value's text: booleans, integers, floats (``nan``, ``inf``), strings and paths
+    (JSON-escaped, which TOML basic strings accept) and lists of these.
+
+    Raises:
+        TypeError: anything else (TOML has no null; tables are the caller's).
+    """
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        if math.isnan(value):
+            return "nan"
+        if math.isinf(value):
+            return "inf" if value > 0 else "-inf"
+        return repr(value)
+    if isinstance(value, str | Path):
+        return json.dumps(str(value))
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(toml_value(v) for v in value) + "]"
+    raise TypeError(f"cannot write {type(value).__name__} {value!r} as a TOML value")

@@ -5,12 +5,15 @@
   the faults configured, then a per-frame strip and, per detection stream, capture -> arrival of
   every network run with drops, duplicates, outliers and other injected faults marked. Detector
   misses of a dataset are not simulated here (every frame counts as detected).
+- ``roft-sim faults random [--seed 0] [--out FILE]``: a random fault mix
+  (:mod:`roft_sim.faults.random_mix`) as a fault file, printed or written.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+from pathlib import Path
 
 from roft_sim.config_files import jsonable
 from roft_sim.errors import ConfigError
@@ -46,6 +49,15 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     )
     show.add_argument("--json", action="store_true", help="print the schedule as JSON instead")
     show.set_defaults(func=_run_show)
+    rnd = verbs.add_parser(
+        "random",
+        help="draw a random fault mix (a fault file) from a seed",
+        description="Draws a fault file from every fault kind at random (docs/faults.md, "
+        "'Random mixes'); the same seed gives the same file. Prints it, or writes it with --out.",
+    )
+    rnd.add_argument("--seed", type=int, default=0, help="mix seed (default 0)")
+    rnd.add_argument("--out", type=Path, help="write the fault file here instead of printing it")
+    rnd.set_defaults(func=_run_random)
     parser.set_defaults(func=lambda args: _no_action(parser))
 
 
@@ -98,4 +110,21 @@ def _run_show(args: argparse.Namespace) -> int:
     )
     header += [seed_note + (", detector ideal" if args.ideal else ""), ""]
     print(format_timeline(schedule, header=tuple(header), width=args.width), end="")
+    return 0
+
+
+def _run_random(args: argparse.Namespace) -> int:
+    from roft_sim.datasets.atomic_files import atomic_write_text
+    from roft_sim.faults.random_mix import fault_mix_toml, random_fault_mix
+
+    if args.seed < 0:
+        raise ConfigError(f"--seed must be >= 0, got {args.seed}")
+    text = fault_mix_toml(random_fault_mix(args.seed))
+    if args.out is None:
+        print(text, end="")
+        return 0
+    if args.out.is_dir():
+        raise ConfigError(f"--out {args.out} is a folder; give a file path such as mix.toml")
+    atomic_write_text(args.out, text)
+    print(f"wrote {args.out} (use it as --faults {args.out}; roft-sim faults show {args.out})")
     return 0

@@ -12,12 +12,10 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
-import math
 from importlib.metadata import entry_points
-from pathlib import Path
 from typing import Any
 
-from roft_sim.config_files import jsonable
+from roft_sim.config_files import jsonable, toml_value
 
 __all__ = ["register", "toml_from_dataclass"]
 
@@ -38,24 +36,6 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     parser.set_defaults(func=_run)
 
 
-def _toml_value(value: Any) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, int):
-        return str(value)
-    if isinstance(value, float):
-        if math.isnan(value):
-            return "nan"
-        if math.isinf(value):
-            return "inf" if value > 0 else "-inf"
-        return repr(value)
-    if isinstance(value, str | Path):
-        return json.dumps(str(value))
-    if isinstance(value, list | tuple):
-        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
-    raise TypeError(f"cannot write {type(value).__name__} {value!r} as a TOML value")
-
-
 def toml_from_dataclass(config: Any, table: str = "") -> str:
     """TOML text of a (nested) config dataclass: scalars and lists first, then sub-tables.
 
@@ -68,7 +48,7 @@ def toml_from_dataclass(config: Any, table: str = "") -> str:
         if dataclasses.is_dataclass(value):
             nested.append((f.name, value))
         elif value is not None:
-            lines.append(f"{f.name} = {_toml_value(value)}")
+            lines.append(f"{f.name} = {toml_value(value)}")
     text = ""
     if table:
         text += f"[{table}]\n"

@@ -28,6 +28,7 @@ from roft_sim.faults.config import (
     compose_faults,
     fault_config_from_mapping,
     fault_presets_dir,
+    fault_spec_name,
     list_fault_presets,
     load_faults,
 )
@@ -47,6 +48,7 @@ from roft_sim.faults.content import (
 from roft_sim.faults.delivery import Duplicate, Reorder, Stale
 from roft_sim.faults.events import Corruption, DeliveryEvent, DetectionRecord
 from roft_sim.faults.loss import BernoulliDropout, Blackout, GilbertElliott
+from roft_sim.faults.random_mix import fault_mix_toml, random_fault_mix
 from roft_sim.faults.schedule import (
     CameraSchedule,
     DetectionSchedule,
@@ -82,6 +84,9 @@ __all__ = [
     "fault_presets_dir",
     "fault_config_from_mapping",
     "compose_faults",
+    "fault_spec_name",
+    "random_fault_mix",
+    "fault_mix_toml",
     # schedule and stream
     "schedule_detections",
     "DetectionSchedule",

@@ -70,6 +70,7 @@ __all__ = [
     "fault_presets_dir",
     "fault_config_from_mapping",
     "compose_faults",
+    "fault_spec_name",
 ]
 
 _DETECTION_SAMPLING_AND_LOSS = Rate | BusyNetwork | BernoulliDropout | GilbertElliott | Blackout
@@ -295,6 +296,12 @@ def compose_faults(*configs: FaultConfig, name: str | None = None) -> FaultConfi
             "that add faults but set no network rate: the stress presets already include the "
             "paper's rate and delay)"
         ) from None
+
+
+def fault_spec_name(spec: str) -> str:
+    """How reports name a fault spec: a fault file (``.../mix-1000.toml``) by its stem, a preset
+    or a composed spec (``paper+bursts``) as given."""
+    return Path(spec).stem if spec.endswith(".toml") and "+" not in spec else spec
 
 
 def fault_presets_dir() -> Path:

@@ -33,7 +33,7 @@ import numpy as np
 from roft_sim.config_files import dataclass_from_mapping, load_toml
 from roft_sim.errors import ConfigError
 from roft_sim.executors import Executor
-from roft_sim.faults.config import list_fault_presets
+from roft_sim.faults.config import fault_spec_name, list_fault_presets
 from roft_sim.harness.cells import CELLS_DIR, SweepCell, load_cell_metrics
 from roft_sim.harness.evaluation import estimate_errors
 from roft_sim.harness.inputs import PREFERRED_FLOW_SET
@@ -465,9 +465,9 @@ def _verdicts(
                     if not (math.isfinite(a) and better):
                         lost.append(f"{label} {a:.3g} vs {base} {b:.3g}")
             if lost:
-                fails.append(f"{preset}: " + ", ".join(lost))
+                fails.append(f"{fault_spec_name(preset)}: " + ", ".join(lost))
             else:
-                wins.append(preset)
+                wins.append(fault_spec_name(preset))
         if wins or fails:
             verdicts[split] = Verdict(split=split, inputs=inputs, wins=wins, fails=fails)
     return verdicts
@@ -636,7 +636,7 @@ def _rows(
     """The ``(value, tracker, metrics)`` rows of ``scores[(group, tracker, value)]``, value by
     value, leaving out the combinations not scored."""
     return [
-        (value, tracker, scores[(group, tracker, value)])
+        (fault_spec_name(value), tracker, scores[(group, tracker, value)])
         for value in values
         for tracker in trackers
         if (group, tracker, value) in scores

@@ -4,12 +4,14 @@ small run that checks the ordering (slow)."""
 from __future__ import annotations
 
 import dataclasses
+import importlib.util
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from roft_sim.errors import ConfigError
+from roft_sim.faults import fault_config_from_mapping, load_faults, random_fault_mix
 from roft_sim.faults.config import list_fault_presets
 from roft_sim.harness.cells import SweepCell
 from roft_sim.harness.options import RunOptions
@@ -124,12 +126,14 @@ def test_verdict_line_names_the_failures() -> None:
         dataclasses.replace(config, quick=dataclasses.replace(config.quick, sequences=("x",)))
 
 
-def _fake_cell(cells_dir: Path, tracker: str, flow: str, offset_m: float) -> SweepCell:
+def _fake_cell(
+    cells_dir: Path, tracker: str, flow: str, offset_m: float, faults: str = "paper"
+) -> SweepCell:
     """A finished cell whose estimate is the ground truth shifted by ``offset_m`` along x and
     turned by ``offset_m`` x 100 degrees about z."""
     cell = SweepCell.create(
         label=tracker,
-        fault_label="paper",
+        fault_label=faults,
         parameter=None,
         value=None,
         sequence_path=str(cells_dir / "no-sequence"),
@@ -283,3 +287,30 @@ def test_report_sets_the_exact_interval_motion_beside_each_split(tmp_path: Path)
     section = report.split("### EVALUATION: velocity from the exact interval motion")[1]
     row = next(line for line in section.splitlines() if line.startswith("| bvh-002_06 |"))
     assert row == "| bvh-002_06 | 5.11 | 4.12 | 3.05 | 19.91 | 19.42 | - |"
+
+
+def test_random_mixes_run_as_fault_files_named_by_their_stem(tmp_path: Path) -> None:
+    """``bench_robustness.py --random-mixes``: the mixes are written as fault files that load
+    back to the drawn configuration, and the report and verdict name them ``mix-<seed>``."""
+    spec = importlib.util.spec_from_file_location(
+        "bench_robustness", Path(__file__).parents[2] / "benchmarks" / "bench_robustness.py"
+    )
+    assert spec is not None and spec.loader is not None
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    paths = bench.write_random_mixes(tmp_path / "mixes", range(7, 9))
+    assert [Path(p).name for p in paths] == ["mix-7.toml", "mix-8.toml"]
+    for seed, path in zip((7, 8), paths, strict=True):
+        assert load_faults(path) == fault_config_from_mapping(random_fault_mix(seed))
+    baselines = ["detector-hold", "pose-only-ukf"]
+    errors_m = {"roft": 0.03, "detector-hold": 0.01, "pose-only-ukf": 0.04}
+    cells = [_fake_cell(tmp_path, t, DEFAULT_FLOW, e, paths[0]) for t, e in errors_m.items()]
+    scores = score_stress(
+        cells, tmp_path, {"bvh-002_06": "holdout"}, subject="roft", baselines=baselines
+    )
+    result = dataclasses.replace(
+        _result(tmp_path, scores, "holdout", baselines, (DEFAULT_FLOW,)), presets=(paths[0],)
+    )
+    report = format_stress_report(result, subject="roft", baselines=baselines)
+    assert "| mix-7 | roft |" in report and str(tmp_path) not in report
+    assert "under 0/1 presets; fails: mix-7: ADD-AUC" in report
