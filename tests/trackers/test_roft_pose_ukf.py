@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -9,6 +11,7 @@ from hypothesis import strategies as st
 from observation_schedules import scaled_examples
 from scipy.spatial.transform import Rotation
 
+from roft_sim.errors import ConfigError
 from roft_sim.geometry import (
     matrix_from_quat,
     quat_angle,
@@ -90,6 +93,63 @@ def test_prediction_mean_follows_the_constant_velocity_model():
     # w is in the camera frame: the rotation is composed on the LEFT
     expected_q = quat_multiply(quat_from_rotvec(dt * b.x[3:6]), q0)
     assert quat_angle(out.q, expected_q) < 1e-10
+
+
+@pytest.mark.parametrize("interval", [True, False])
+def test_coasting_prediction_follows_the_gaussian_velocity_autocorrelation(interval):
+    """``coast_s`` seconds without a velocity measurement: one step multiplies v and w by
+    rho(t) / rho(t - dt), rho(t) = exp(-t^2 / (2 sigma^2)), and the pose integrates the decayed
+    velocities; their covariance is kept. Steps from the last measured velocity compose to
+    rho(t) of the whole coast."""
+    cfg = PoseUKFConfig(
+        sigma_linear=(0.0,) * 3,
+        sigma_angular=(0.0,) * 3,
+        coast_correlation_time_v_s=0.2,
+        coast_correlation_time_w_s=0.11,
+        integrate_interval_velocity=interval,
+    )
+    ukf = PoseUKF(cfg)
+    q0 = quat_from_rotvec([0.2, 0.1, -0.4])
+    x = np.r_[0.1, -0.2, 0.3, 0.5, 1.0, -2.0, 0.0, 0.1, 0.6]
+    dt = 1 / 30
+
+    def rho(t, sigma):
+        return np.exp(-(t**2) / (2 * sigma**2))
+
+    def point(state):
+        return PoseBelief(x=state, q=q0, P=np.diag(np.full(12, 1e-14)))
+
+    t = 3 * dt  # the third frame without a velocity measurement
+    a_v, a_w = rho(t, 0.2) / rho(t - dt, 0.2), rho(t, 0.11) / rho(t - dt, 0.11)
+    out = ukf.predict(point(x), dt, coast_s=t)
+    np.testing.assert_allclose(out.x[0:3], a_v * x[0:3], atol=1e-12)
+    np.testing.assert_allclose(out.x[3:6], a_w * x[3:6], atol=1e-12)
+    velocity = (a_v * x[0:3], a_w * x[3:6]) if interval else (x[0:3], x[3:6])
+    if interval:  # the pose integrates the (decayed) new velocities
+        np.testing.assert_allclose(out.x[6:9], x[6:9] + dt * velocity[0], atol=1e-12)
+        expected_q = quat_multiply(quat_from_rotvec(dt * velocity[1]), q0)
+        assert quat_angle(out.q, expected_q) < 1e-10
+    spread = ukf.predict(PoseBelief(x=x, q=q0, P=np.diag(np.full(12, 1e-4))), dt, coast_s=t)
+    np.testing.assert_allclose(spread.x[0:3], a_v * x[0:3], atol=1e-12)
+    np.testing.assert_allclose(np.diag(spread.P)[0:6], 1e-4, rtol=1e-9)  # spread kept
+    belief = point(x)  # five coasting steps leave rho(5 dt) of the last measured velocity
+    for step in range(1, 6):
+        belief = ukf.predict(belief, dt, coast_s=step * dt)
+    np.testing.assert_allclose(belief.x[0:3], rho(5 * dt, 0.2) * x[0:3], atol=1e-12)
+    np.testing.assert_allclose(belief.x[3:6], rho(5 * dt, 0.11) * x[3:6], atol=1e-12)
+    # a measured frame, and the reference (no correlation times), keep a constant velocity
+    reference = dataclasses.replace(
+        cfg, coast_correlation_time_v_s=None, coast_correlation_time_w_s=None
+    )
+    for model, coast_s in ((ukf, 0.0), (PoseUKF(reference), t)):
+        out = model.predict(point(x), dt, coast_s=coast_s)
+        np.testing.assert_allclose(out.x[0:6], x[0:6], atol=1e-12)
+
+
+@pytest.mark.parametrize("sigma", [0.0, -0.1, float("nan")])
+def test_coast_correlation_times_must_be_positive(sigma):
+    with pytest.raises(ConfigError, match="coast_correlation_time_w_s must be > 0 seconds"):
+        PoseUKFConfig(coast_correlation_time_w_s=sigma)
 
 
 def _exact_kf(x, P, steps, cfg, w, dt):

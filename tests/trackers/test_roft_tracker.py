@@ -598,6 +598,35 @@ def test_dropped_camera_frames_predict_without_measurement(tiny_seq):
     assert isinstance(obs[8], Observation) and obs[8].camera_dropped
 
 
+def test_without_flow_the_pose_coasts_with_decaying_velocities(tiny_seq):
+    """Camera frames 12..39 dropped (no flow; no pose after frame 6): after t seconds without
+    a velocity measurement the UKF's angular velocity is rho(t) times the last measured one,
+    rho the Gaussian autocorrelation of ``pose.coast_correlation_time_w_s``, so the pose moves
+    far less than a constant-velocity extrapolation carries it; with the correlation times off
+    (the reference's model) the velocity stays."""
+    seq = tiny_seq
+    first = [Delivery(0, 0, 0), Delivery(6, 6, 1)]
+    obs = build_observations(
+        seq, poses=first, masks=[Delivery(0, 0, 1000)], dropped_frames=range(12, len(seq))
+    )
+    constant = dataclasses.replace(
+        TINY.pose, coast_correlation_time_v_s=None, coast_correlation_time_w_s=None
+    )
+    moved = {}
+    for name, pose in (("coast", TINY.pose), ("constant", constant)):
+        est = run(RoftTracker(dataclasses.replace(TINY, pose=pose), make_context(seq)), obs)
+        w = np.array([e.w_radps for e in est])
+        assert est[11].diagnostics["flow_pixels"] > 0 and np.linalg.norm(w[11]) > 0.05
+        if name == "coast":
+            t = np.arange(1, len(seq) - 11) / seq.fps
+            rho = np.exp(-(t**2) / (2 * pose.coast_correlation_time_w_s**2))
+            np.testing.assert_allclose(w[12:], rho[:, None] * w[11], rtol=1e-9, atol=1e-12)
+        else:
+            np.testing.assert_allclose(w[12:], np.broadcast_to(w[11], w[12:].shape), atol=1e-12)
+        moved[name] = transform_distance(est[11].T_cam_obj, est[-1].T_cam_obj)
+    assert moved["coast"][1] < 0.5 * moved["constant"][1]
+
+
 def test_metric_erosion_is_a_band_on_the_object_and_never_eats_the_mask():
     """5 mm at 0.5 m with fx = 500 px is 5 px; a 6x6 px mask keeps more than half of itself
     (radius 1 would leave 16 of 36 pixels, so the radius drops to 0)."""

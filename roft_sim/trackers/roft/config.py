@@ -460,6 +460,21 @@ class PoseUKFConfig:
     the pose (the reference). False: a Schmidt ("consider") update: the gain rows of v and w
     are zeroed for pose measurements, so the velocities come from the flow alone and a replay
     with a pose far from the integrated track does not kick them."""
+    coast_correlation_time_v_s: float | None = 0.2
+    """While the pose UKF gets no velocity measurement (the flow KF could not update: no mask
+    or too few valid pixels, a dropped camera frame), its prediction carries the velocity v as
+    the best guess from the last measured one, ``rho(t) v`` after t seconds without one, with
+    the autocorrelation of hand-held motion ``rho(t) = exp(-t^2 / (2 sigma^2))`` of width sigma
+    [s] (each step multiplies v by ``rho(t) / rho(t - dt)``), instead of keeping it constant:
+    the velocity of hand-held motion decorrelates within a few tenths of a second, so a stale
+    twist must not carry the pose on for as long as the flow is missing. Source: this Gaussian
+    fits the pooled autocorrelation of v on the stress benchmark's TUNING sequences (0.98,
+    0.93, 0.71, 0.27 at 1, 2, 5, 10 frames; sigma = 6.0 frames at 30 fps = 0.2 s; docs/roft.md,
+    "Round 11"). None: constant velocity (the reference). Frames with a velocity measurement are
+    predicted with constant velocity."""
+    coast_correlation_time_w_s: float | None = 0.11
+    """The same for the angular velocity w [s] (TUNING autocorrelation 0.95, 0.83, 0.34 at 1, 2,
+    5 frames: sigma = 3.4 frames = 0.11 s). None: constant (the reference)."""
     alpha: float = 1.0
     """Unscented transform spread."""
     beta: float = 2.0
@@ -481,6 +496,13 @@ class PoseUKFConfig:
             "meas_cov_q",
         ):
             _check_positive("pose", name, getattr(self, name))
+        for name in ("coast_correlation_time_v_s", "coast_correlation_time_w_s"):
+            tau = getattr(self, name)
+            if tau is not None and not (math.isfinite(tau) and tau > 0):
+                raise ConfigError(
+                    f"pose.{name} must be > 0 seconds (or omitted for a constant velocity "
+                    f"while no velocity is measured), got {tau}"
+                )
         if not (math.isfinite(self.alpha) and self.alpha > 0):
             raise ConfigError(f"pose.alpha must be > 0, got {self.alpha}")
         if not (math.isfinite(self.beta) and math.isfinite(self.kappa)):

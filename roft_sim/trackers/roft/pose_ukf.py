@@ -27,8 +27,10 @@ reference recomputes them with its log map; identical below pi).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -291,11 +293,29 @@ class PoseUKF:
         Q[3:6, 3:6] = self._Q_ww
         return Q
 
-    def predict(self, belief: PoseBelief, dt_s: float) -> PoseBelief:
+    def coast_factor(self, coast_s: float, dt_s: float, block: Literal["v", "w"]) -> float:
+        """``rho(t) / rho(t - dt)`` of the velocity block ``v`` or ``w`` for a prediction that
+        ends ``coast_s`` = t seconds after the last velocity measurement (``rho`` the Gaussian
+        autocorrelation of ``pose.coast_correlation_time_*``); 1 when t = 0 or without one."""
+        cfg = self._config
+        sigma = cfg.coast_correlation_time_v_s if block == "v" else cfg.coast_correlation_time_w_s
+        if sigma is None or coast_s <= 0.0:
+            return 1.0
+        start = max(0.0, coast_s - dt_s)
+        return math.exp(-(coast_s**2 - start**2) / (2.0 * sigma**2))
+
+    def predict(self, belief: PoseBelief, dt_s: float, *, coast_s: float = 0.0) -> PoseBelief:
         """Constant-velocity prediction over ``dt_s`` (reference report section 4.3).
 
         ``v' = v + n_v``, ``w' = w + n_w``, ``p' = p + v dt + n_p``, ``q' = exp(w dt / 2) ⊗ q``
         (w in the camera frame; p and q use the velocities before noise).
+
+        ``coast_s`` > 0: no velocity was measured for that long at the end of this step (none
+        follows it): the mean velocities are multiplied by the factors ``a_v``, ``a_w`` of
+        :meth:`coast_factor` (every sigma point is moved by the mean's change), so that after t
+        seconds without a measurement they are ``rho(t)`` times the last measured ones; their
+        covariance is not shrunk (nothing measured makes the velocity better known) and grows
+        by the process noise as usual.
         """
         c, wm, wc = self._ut(21)
         d = _sigma_offsets([psd_sqrt(belief.P), psd_sqrt(self.process_noise(dt_s))], c)
@@ -303,6 +323,9 @@ class PoseUKF:
         x = belief.x + dx[:, :9]
         q = _qmul(_qexp(dx[:, 9:12]), belief.q)
         v, w, p = x[:, 0:3], x[:, 3:6], x[:, 6:9]
+        if coast_s > 0.0:  # every sigma point moves by the mean's decay: the spread is kept
+            v = v - (1.0 - self.coast_factor(coast_s, dt_s, "v")) * belief.x[0:3]
+            w = w - (1.0 - self.coast_factor(coast_s, dt_s, "w")) * belief.x[3:6]
         v_new, w_new = v + dn[:, 0:3], w + dn[:, 3:6]
         if self._config.integrate_interval_velocity:
             v, w = v_new, w_new

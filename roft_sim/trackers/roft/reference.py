@@ -92,6 +92,8 @@ def _reference_pose() -> PoseUKFConfig:
         alpha=1.0,  # unscented_transform.alpha (report 4.2, 7.2)
         beta=2.0,  # unscented_transform.beta (report 4.2, 7.2)
         kappa=0.0,  # unscented_transform.kappa (report 4.2, 7.2)
+        coast_correlation_time_v_s=None,  # constant velocity when unmeasured (report 4.3)
+        coast_correlation_time_w_s=None,  # constant velocity when unmeasured (report 4.3)
     )
 
 
@@ -270,6 +272,13 @@ DEVIATIONS: tuple[Deviation, ...] = (
         "the flow is corrected for the finite rigid motion over the interval (SE(3) "
         "exponential at the filter's twist), so the linear model holds at fast turns",
         _restore("velocity", "finite_motion_correction"),
+    ),
+    Deviation(
+        "coast_decay",
+        "while no twist is measured (no flow, no mask), the pose UKF's velocities follow the "
+        "autocorrelation of hand-held motion towards zero (Gaussian, 0.2 s linear, 0.11 s "
+        "angular)",
+        _restore("pose", "coast_correlation_time_v_s", "coast_correlation_time_w_s"),
     ),
 )
 """The deviations in the order the attribution table adds them; applying all of them to

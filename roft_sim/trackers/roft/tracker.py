@@ -517,8 +517,10 @@ class RoftTracker:
         frame = self._frames[j]
         # the initial estimate, when it describes frame j itself, needs no prediction
         no_predict = j == self._no_predict_frame
-        belief = prior if no_predict else self._ukf.predict(prior, frame.dt_s)
         twist = frame.twist if self._config.use_velocity else None
+        belief = (
+            prior if no_predict else self._ukf.predict(prior, frame.dt_s, coast_s=self._coast_s(j))
+        )
         twist_cov = frame.twist_cov if twist is not None else None
         streak = self._gate_streaks.get(j - 1, 0)
         spread = self._gate_spreads.get(j - 1) or initial_spread(self._config.gate)
@@ -545,6 +547,18 @@ class RoftTracker:
         self._gate_spreads[j] = spread
         self._scales[j] = scales
         return belief
+
+    def _coast_s(self, j: int) -> float:
+        """Seconds without a velocity measurement at frame j: the time steps of j and of the
+        frames before it that have no twist, back to the last one that has (over the frames
+        kept, ``sync.horizon_frames``); 0 when j has one or the flow is not used."""
+        if not self._config.use_velocity:
+            return 0.0
+        coast = 0.0
+        while j in self._frames and self._frames[j].twist is None:
+            coast += self._frames[j].dt_s
+            j -= 1
+        return coast
 
     # ------------------------------------------------------------------ reported covariance
     def _pose_noise(self) -> F64:
