@@ -84,18 +84,30 @@ def _timing(rng: np.random.Generator) -> list[dict[str, Any]]:
     return faults
 
 
-def _loss(rng: np.random.Generator) -> list[dict[str, Any]]:
+def _dropouts(
+    rng: np.random.Generator,
+    p_high: float,
+    good_to_bad: tuple[float, float],
+    bad_to_good: tuple[float, float],
+) -> list[dict[str, Any]]:
+    """(0.5) a Bernoulli loss with p below ``p_high``; (0.3) Gilbert-Elliott bursts with their
+    transition probabilities drawn from the two ranges."""
     faults: list[dict[str, Any]] = []
     if rng.random() < 0.5:
-        faults.append({"kind": "dropout", "p": _p(rng, 0.4)})
+        faults.append({"kind": "dropout", "p": _p(rng, p_high)})
     if rng.random() < 0.3:
         faults.append(
             {
                 "kind": "burst_dropout",
-                "p_good_to_bad": round(float(rng.uniform(0.01, 0.1)), 4),
-                "p_bad_to_good": round(float(rng.uniform(0.1, 0.5)), 4),
+                "p_good_to_bad": round(float(rng.uniform(*good_to_bad)), 4),
+                "p_bad_to_good": round(float(rng.uniform(*bad_to_good)), 4),
             }
         )
+    return faults
+
+
+def _loss(rng: np.random.Generator) -> list[dict[str, Any]]:
+    faults = _dropouts(rng, 0.4, (0.01, 0.1), (0.1, 0.5))
     if rng.random() < 0.2:
         start = int(rng.integers(10, 90))
         faults.append({"kind": "blackout", "windows": [[start, start + int(rng.integers(10, 41))]]})
@@ -151,17 +163,7 @@ def _detection_stream(rng: np.random.Generator, stream: str) -> dict[str, Any]:
 
 
 def _camera(rng: np.random.Generator) -> list[dict[str, Any]]:
-    faults: list[dict[str, Any]] = []
-    if rng.random() < 0.5:
-        faults.append({"kind": "dropout", "p": _p(rng, 0.12)})
-    if rng.random() < 0.3:
-        faults.append(
-            {
-                "kind": "burst_dropout",
-                "p_good_to_bad": round(float(rng.uniform(0.005, 0.03)), 4),
-                "p_bad_to_good": round(float(rng.uniform(0.3, 0.7)), 4),
-            }
-        )
+    faults = _dropouts(rng, 0.12, (0.005, 0.03), (0.3, 0.7))
     if rng.random() < 0.4:
         faults.append({"kind": "depth_holes", "p": _p(rng, 0.2)})
     if rng.random() < 0.3:

@@ -92,6 +92,34 @@ def test_after_the_allowed_streak_the_next_pose_is_accepted(small_seq):
     assert est[18].accepted_pose_ids == (3,)  # the streak allowed no third rejection
 
 
+@pytest.mark.parametrize("span_s, third_accepted", [(0.4, False), (0.0, True)])
+def test_a_fast_burst_of_flips_does_not_end_the_adaptive_gates_streak(
+    small_seq, span_s, third_accepted
+):
+    """A confirmed track, then three flipped poses two frames apart (a 15 Hz network's burst):
+    with ``min_rejection_span_s`` = 0.4 s the streak (first flip at frame 12) cannot end at
+    frame 16, so the third flip is rejected too, and a correct pose after 0.4 s passes; counting
+    poses alone (0 s) lets the third flip in."""
+    seq = small_seq
+    gt = seq.gt.T_cam_obj
+    config = _without_depth_test(min_rejection_span_s=span_s)
+    flips = [Delivery(c, c, i, _flipped(gt[c])) for i, c in enumerate((12, 14, 16), start=2)]
+    deliveries = [Delivery(0, 0, 0), Delivery(6, 6, 1), *flips, Delivery(30, 30, 5)]
+    masks = paper_schedule(len(seq), first_id=1000)
+    est = run(
+        RoftTracker(config, make_context(seq)),
+        build_observations(seq, poses=deliveries, masks=masks),
+    )
+    assert est[6].accepted_pose_ids == (1,)
+    assert [est[c].rejected_pose_ids for c in (12, 14)] == [(2,), (3,)]
+    assert (est[16].accepted_pose_ids == (4,)) is third_accepted
+    assert (est[16].rejected_pose_ids == (4,)) is not third_accepted
+    if not third_accepted:
+        assert est[30].accepted_pose_ids == (5,)
+        angle = transform_distance(est[29].T_cam_obj, gt[29])[1]
+        assert np.degrees(angle) < 20.0  # the track kept its orientation through the burst
+
+
 def test_gate_off_is_the_reference_behaviour(small_seq):
     seq = small_seq
     deliveries = [Delivery(0, 0, 0), Delivery(6, 12, 1, _flipped(seq.gt.T_cam_obj[6]))]

@@ -575,6 +575,8 @@ def test_config_loads_from_toml_with_nested_tables(tmp_path):
         ("[mask]\ncleanup = 'erode'\n", "expected one of 'none', 'close', 'majority'"),
         ("use_flow = false\n", "use_velocity = true needs use_flow = true"),
         ("[sync]\nhorizon_frames = -1\n", "horizon_frames must be in"),
+        ("[gate]\nmin_rejection_span_s = -0.1\n", "min_rejection_span_s must be >= 0 seconds"),
+        ("[pose]\ncoast_correlation_time_v_s = 0.0\n", "coast_correlation_time_v_s must be > 0"),
     ],
 )
 def test_bad_config_values_name_the_key_and_the_fix(tmp_path, text, match):

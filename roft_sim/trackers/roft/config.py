@@ -565,7 +565,16 @@ class PoseGateConfig:
     """Fixed gate: largest accepted angle between the pose's orientation and the prediction
     [deg]."""
     max_consecutive_rejections: int = 2
-    """After this many poses rejected in a row (in capture order), the next one is accepted."""
+    """After this many poses rejected in a row (in capture order), the next one is accepted
+    (adaptive gate: and only once the rejections span ``min_rejection_span_s``)."""
+    min_rejection_span_s: float = 0.4
+    """Adaptive gate: a streak of rejected poses ends (the next pose is accepted whatever its
+    distance) only once its first rejected pose was captured at least this long before the
+    next one [s], besides ``max_consecutive_rejections``. 0.4 s is what the two rejections of
+    a 5 Hz network (the paper's) span, so the rule is the same at 5 Hz and slower; a faster
+    network must contradict the track for as long, so a burst of correlated outliers (a
+    flipped detection and its stale repeats: three in 0.1 s at 15 Hz) cannot override it
+    (docs/roft.md, "Round 11"). 0: the count alone."""
     adaptive: bool = False
     """Replace the fixed bounds by a chi-square test (3 degrees of freedom each, position and
     rotation) on the pose's innovation against an isotropic variance: the exponentially
@@ -619,6 +628,10 @@ class PoseGateConfig:
         if not (math.isfinite(self.max_rotation_deg) and 0 < self.max_rotation_deg <= 180):
             raise ConfigError(
                 f"gate.max_rotation_deg must be in (0, 180], got {self.max_rotation_deg}"
+            )
+        if not (math.isfinite(self.min_rejection_span_s) and self.min_rejection_span_s >= 0):
+            raise ConfigError(
+                f"gate.min_rejection_span_s must be >= 0 seconds, got {self.min_rejection_span_s}"
             )
         if self.max_consecutive_rejections < 0:
             raise ConfigError(

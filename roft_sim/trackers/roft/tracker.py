@@ -109,6 +109,27 @@ class _Frame:
 
 
 @dataclass(frozen=True, slots=True)
+class _RejectionStreak:
+    """The poses the gate rejected in a row (in capture order) and the capture frame of the
+    first of them."""
+
+    count: int = 0
+    first_capture_k: int = -1
+
+    def after_rejecting(self, capture_k: int) -> _RejectionStreak:
+        """The streak with one more pose, captured at ``capture_k``, rejected."""
+        first = self.first_capture_k if self.count else capture_k
+        return _RejectionStreak(self.count + 1, first)
+
+    def span_s(self, capture_k: int, fps: float) -> float:
+        """Seconds from the first rejected pose's capture to ``capture_k`` (0 without one)."""
+        return (capture_k - self.first_capture_k) / fps if self.count else 0.0
+
+
+_NO_STREAK = _RejectionStreak()
+
+
+@dataclass(frozen=True, slots=True)
 class _Pose:
     detection_id: int
     capture_k: int
@@ -188,7 +209,8 @@ class RoftTracker:
         self._velocity_kf.reset()
         self._frames: dict[int, _Frame] = {}
         self._beliefs: dict[int, PoseBelief] = {}
-        self._gate_streaks: dict[int, int] = {}  # frame -> poses gated in a row after it
+        # frame -> the poses gated in a row after it
+        self._gate_streaks: dict[int, _RejectionStreak] = {}
         # frame -> the adaptive gate's innovation spread after it
         self._gate_spreads: dict[int, InnovationSpread] = {}
         self._scales: dict[int, BlockScales] = {}  # frame -> variance scales after it
@@ -432,15 +454,15 @@ class RoftTracker:
         pose: _Pose,
         frame: _Frame,
         first: bool,
-        streak: int,
+        streak: _RejectionStreak,
         spread: InnovationSpread,
-    ) -> tuple[PoseBelief, int, InnovationSpread]:
+    ) -> tuple[PoseBelief, _RejectionStreak, InnovationSpread]:
         """One pose correction (with the frame's velocity on the first pose of the frame),
         behind the gate and the depth outlier test unless the pose initialised the filter.
 
         Returns:
-            The corrected belief, the number of poses gated in a row after this one and the
-            adaptive gate's innovation spread after it.
+            The corrected belief, the poses gated in a row after this one and the adaptive
+            gate's innovation spread after it.
         """
         twist_cov = frame.twist_cov if twist is not None else None
         if pose is self._init_pose:
@@ -453,7 +475,7 @@ class RoftTracker:
                     p_meas_m=pose.p_m,
                     q_meas_wxyz=pose.q_wxyz,
                 ),
-                0,
+                _NO_STREAK,
                 spread,
             )
         without_pose = (
@@ -466,20 +488,24 @@ class RoftTracker:
             variance = (float(np.trace(P[6:9, 6:9])) / 3, float(np.trace(P[9:12, 9:12])) / 3)
             passes, after = adaptive_gate_test(gate, spread, squared, variance, pose.capture_k)
             confirmed = spread.passed > 0 or not gate.open_until_confirmed
-            gated = not passes and confirmed and streak < gate.max_consecutive_rejections
+            span_s = streak.span_s(pose.capture_k, self._context.fps)
+            may_reject = (
+                streak.count < gate.max_consecutive_rejections or span_s < gate.min_rejection_span_s
+            )
+            gated = not passes and confirmed and may_reject
             spread = after
             self._reinitialising.discard(pose.detection_id)
             if not passes and not confirmed and gate.reinitialise_unconfirmed:
                 self._decisions[pose.detection_id] = True
                 self._gated.discard(pose.detection_id)
                 self._reinitialising.add(pose.detection_id)
-                return self._reinitialised_at(without_pose, pose), 0, spread
+                return self._reinitialised_at(without_pose, pose), _NO_STREAK, spread
         else:
-            gated = gate_rejects(gate, predicted, pose.p_m, pose.q_wxyz, streak)
+            gated = gate_rejects(gate, predicted, pose.p_m, pose.q_wxyz, streak.count)
         if gated:
             self._decisions[pose.detection_id] = False
             self._gated.add(pose.detection_id)
-            return without_pose, streak + 1, spread
+            return without_pose, streak.after_rejecting(pose.capture_k), spread
         self._gated.discard(pose.detection_id)
         with_pose = self._ukf.correct(
             predicted,
@@ -491,14 +517,14 @@ class RoftTracker:
         test = self._outlier_test
         if test is None:
             self._decisions[pose.detection_id] = True
-            return with_pose, 0, spread
+            return with_pose, _NO_STREAK, spread
         reject = test.reject(
             transform_from_pq(with_pose.x[6:9], with_pose.q),
             transform_from_pq(without_pose.x[6:9], without_pose.q),
             frame.samples,
         )
         self._decisions[pose.detection_id] = not reject
-        return (without_pose if reject else with_pose), 0, spread
+        return (without_pose if reject else with_pose), _NO_STREAK, spread
 
     def _reinitialised_at(self, belief: PoseBelief, pose: _Pose) -> PoseBelief:
         """``belief`` with its pose replaced by ``pose`` and the pose block of its covariance
@@ -522,7 +548,7 @@ class RoftTracker:
             prior if no_predict else self._ukf.predict(prior, frame.dt_s, coast_s=self._coast_s(j))
         )
         twist_cov = frame.twist_cov if twist is not None else None
-        streak = self._gate_streaks.get(j - 1, 0)
+        streak = self._gate_streaks.get(j - 1, _NO_STREAK)
         spread = self._gate_spreads.get(j - 1) or initial_spread(self._config.gate)
         scales = self._scales.get(j - 1) or self._start_scales()
         if not no_predict:
