@@ -497,11 +497,11 @@ class PoseUKFConfig:
         ):
             _check_positive("pose", name, getattr(self, name))
         for name in ("coast_correlation_time_v_s", "coast_correlation_time_w_s"):
-            tau = getattr(self, name)
-            if tau is not None and not (math.isfinite(tau) and tau > 0):
+            sigma = getattr(self, name)
+            if sigma is not None and not (math.isfinite(sigma) and sigma > 0):
                 raise ConfigError(
                     f"pose.{name} must be > 0 seconds (or omitted for a constant velocity "
-                    f"while no velocity is measured), got {tau}"
+                    f"while no velocity is measured), got {sigma}"
                 )
         if not (math.isfinite(self.alpha) and self.alpha > 0):
             raise ConfigError(f"pose.alpha must be > 0, got {self.alpha}")
