@@ -124,10 +124,9 @@ def test_coasting_prediction_follows_the_gaussian_velocity_autocorrelation(inter
     out = ukf.predict(point(x), dt, coast_s=t)
     np.testing.assert_allclose(out.x[0:3], a_v * x[0:3], atol=1e-12)
     np.testing.assert_allclose(out.x[3:6], a_w * x[3:6], atol=1e-12)
-    velocity = (a_v * x[0:3], a_w * x[3:6]) if interval else (x[0:3], x[3:6])
     if interval:  # the pose integrates the (decayed) new velocities
-        np.testing.assert_allclose(out.x[6:9], x[6:9] + dt * velocity[0], atol=1e-12)
-        expected_q = quat_multiply(quat_from_rotvec(dt * velocity[1]), q0)
+        np.testing.assert_allclose(out.x[6:9], x[6:9] + dt * a_v * x[0:3], atol=1e-12)
+        expected_q = quat_multiply(quat_from_rotvec(dt * a_w * x[3:6]), q0)
         assert quat_angle(out.q, expected_q) < 1e-10
     spread = ukf.predict(PoseBelief(x=x, q=q0, P=np.diag(np.full(12, 1e-4))), dt, coast_s=t)
     np.testing.assert_allclose(spread.x[0:3], a_v * x[0:3], atol=1e-12)
