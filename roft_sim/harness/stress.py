@@ -107,8 +107,6 @@ class StressSequence:
     """``tuning``, ``evaluation`` (the project-wide split) or ``holdout`` (:data:`SPLITS`)."""
     motion: Literal["captured", "continuous", "bursty"]
     """Captured motion from the trajectories folder, or a synthetic profile."""
-    object: str
-    """Registry name of the object."""
     seed: int
     """Scenario seed; also the synthetic profile's seed."""
     capture: str | None = None
@@ -119,8 +117,21 @@ class StressSequence:
     """BVH only: the joint followed (relative to the pelvis)."""
     start_s: float = 0.0
     """Captured only: where the window starts in the file [s]."""
+    object: str | None = None
+    """Registry name of the object (exactly one of ``object`` and ``mesh``)."""
+    mesh: Path | None = None
+    """A textured mesh file (``.obj`` with its ``.mtl`` and texture, metres, in the object frame
+    of the poses) instead of a registry object: a tracker judged on an object of one's own.
+    Relative paths resolve against the stress file's folder. Its pose network is the pooled
+    DOPE-like estimator (no per-object calibration)."""
 
     def __post_init__(self) -> None:
+        if (self.object is None) == (self.mesh is None):
+            raise ConfigError(
+                f"sequence {self.name!r}: needs exactly one of object = '<registry name>' or "
+                f"mesh = '<file.obj>', got object={self.object!r}, "
+                f"mesh={None if self.mesh is None else str(self.mesh)!r}"
+            )
         if self.split not in SPLITS:
             raise ConfigError(
                 f"sequence {self.name!r}: split {self.split!r} is not one of {', '.join(SPLITS)}"
@@ -223,10 +234,17 @@ def load_stress_config(path: str | Path) -> StressConfig:
     """Reads a stress file strictly (the template path is resolved against it)."""
     path = Path(path)
     config = dataclass_from_mapping(StressConfig, load_toml(path), where=str(path))
+    folder = path.resolve().parent
     template = config.template
     if not template.is_absolute():
-        template = path.resolve().parent / template
-    return dataclasses.replace(config, template=template)
+        template = folder / template
+    sequences = tuple(
+        dataclasses.replace(seq, mesh=folder / seq.mesh)
+        if seq.mesh is not None and not seq.mesh.is_absolute()
+        else seq
+        for seq in config.sequences
+    )
+    return dataclasses.replace(config, template=template, sequences=sequences)
 
 
 def _trajectory_config(seq: StressSequence, duration_s: float, trajectories_dir: Path) -> Any:
@@ -295,7 +313,7 @@ def stress_scenarios(
                 name=seq.name,
                 seed=seq.seed,
                 camera=camera,
-                object=ObjectConfig(name=seq.object),
+                object=ObjectConfig(name=seq.object, mesh=seq.mesh),
                 trajectory=_trajectory_config(seq, duration_s, trajectories_dir),
                 frames=size.frames,
                 duration_s=None,

@@ -94,6 +94,69 @@ def test_a_split_outside_the_three_is_refused() -> None:
         StressSequence(name="x", split="test", motion="bursty", object="003_cracker_box", seed=0)  # type: ignore[arg-type]
 
 
+def test_a_sequence_names_a_registry_object_or_a_mesh_file_not_both() -> None:
+    with pytest.raises(ConfigError, match="exactly one of object = .* or mesh = .*got object=None"):
+        StressSequence(name="x", split="holdout", motion="bursty", seed=0)
+    with pytest.raises(ConfigError, match="exactly one of object"):
+        StressSequence(
+            name="x",
+            split="holdout",
+            motion="bursty",
+            seed=0,
+            object="003_cracker_box",
+            mesh=Path("box.obj"),
+        )
+
+
+def test_a_mesh_sequence_resolves_against_the_stress_file(tmp_path: Path) -> None:
+    """A user's own object: ``mesh = "<file>"`` relative to the stress file reaches the
+    scenario's ``[object] mesh``; a registry sequence beside it keeps its name."""
+    template = shipped_stress_config().parent.parent / "ci" / "mustard_hand_moving_camera.toml"
+    (tmp_path / "sub").mkdir()
+    config_file = tmp_path / "sub" / "mine.toml"
+    config_file.write_text(
+        f"""name = "mine"
+trackers = ["roft", "detector-hold"]
+subject = "roft"
+baselines = ["detector-hold"]
+flows = ["stored:nvof_1_slow"]
+template = "{template}"
+
+[[sequences]]
+name = "own-object"
+split = "holdout"
+motion = "continuous"
+mesh = "meshes/drill.obj"
+seed = 5
+
+[[sequences]]
+name = "registry-object"
+split = "holdout"
+motion = "bursty"
+object = "004_sugar_box"
+seed = 6
+
+[quick]
+frames = 12
+resolution = [160, 90]
+seeds = [0]
+
+[full]
+frames = 12
+resolution = [160, 90]
+seeds = [0]
+"""
+    )
+    config = load_stress_config(config_file)
+    own, registry = config.sequences
+    assert own.mesh == tmp_path / "sub" / "meshes" / "drill.obj" and own.object is None
+    assert registry.object == "004_sugar_box" and registry.mesh is None
+    scenarios, skipped = stress_scenarios(config, config.quick, tmp_path / "none")
+    assert skipped == []
+    assert scenarios[0].object.mesh == own.mesh and scenarios[0].object.name is None
+    assert scenarios[1].object.name == "004_sugar_box" and scenarios[1].object.mesh is None
+
+
 def test_scenarios_skip_captured_motion_without_the_shared_folder(tmp_path: Path) -> None:
     config = load_stress_config(shipped_stress_config())
     scenarios, skipped = stress_scenarios(config, config.full, tmp_path / "absent")
