@@ -348,6 +348,11 @@ def test_a_pose_after_a_stretch_without_poses_is_tested_against_the_drift_it_all
             prior_translation_m=0.012,
             prior_weight=100.0,  # the spread stays at the prior
         )
+        # the flow alone: the depth change of the moving box would contradict the zero flow
+        # and hold the drift this test needs down (velocity.depth_rate)
+        config = dataclasses.replace(
+            config, velocity=dataclasses.replace(config.velocity, depth_rate=False)
+        )
         est = run(
             RoftTracker(config, make_context(seq)),
             build_observations(seq, poses=deliveries, masks=masks, flows=flows),
@@ -358,3 +363,52 @@ def test_a_pose_after_a_stretch_without_poses_is_tested_against_the_drift_it_all
         worst[scaling] = (float(np.degrees(dr.max())), float(dt.max()))
     assert worst[True][0] < 10.0 and worst[True][1] < 0.02, worst
     assert worst[False][0] > 14.0 and worst[False][1] > 0.04, worst
+
+
+@pytest.mark.parametrize("coverage", [0.5, None])
+def test_a_track_the_depth_shows_off_is_reinitialised_by_the_pose_the_gate_rejects(
+    small_seq, coverage
+):
+    """Poses and masks every frame, undelayed (a 30 Hz network); the first three poses are 30 cm
+    off, agree with each other and so confirm the track on the wrong place. The correct pose of
+    frame 3 fails the gate, but rendered at frame 3 it covers the mask's depth samples and the
+    track none of them: with ``depth_override_coverage`` it re-initialises the track (within
+    2 cm from frame 3 on); without, the correct poses are rejected and the track stays off for
+    five frames (the first is fused at frame 8)."""
+    seq = small_seq
+    gt = seq.gt.T_cam_obj
+    config = dataclasses.replace(
+        TINY, gate=dataclasses.replace(TINY.gate, depth_override_coverage=coverage)
+    )
+    poses = [Delivery(c, c, c, _jumped(gt[c]) if c < 3 else None) for c in range(20)]
+    masks = [Delivery(c, c, 1000 + c) for c in range(20)]
+    est = run(
+        RoftTracker(config, make_context(seq)),
+        build_observations(seq, poses=poses, masks=masks),
+    )
+    dt, _ = transform_distance(np.stack([e.T_cam_obj for e in est[:20]]), gt[:20])
+    assert dt[:3].min() > 0.25  # the wrong start, confirmed
+    if coverage is not None:
+        assert est[3].accepted_pose_ids == (3,)
+        assert dt[3:20].max() < 0.02, dt
+    else:
+        assert est[3].rejected_pose_ids == (3,)
+        assert dt[3:8].min() > 0.2, dt
+
+
+def test_the_depth_override_keeps_the_tracks_orientation_when_the_depth_cannot_tell(small_seq):
+    """As above, but the correct-place pose of frame 3 is flipped 180 degrees about the box's x
+    axis (its depth is the box's, whatever the flip): the override takes its position and keeps
+    the track's orientation, which was right, so the flip never reaches the estimate."""
+    seq = small_seq
+    gt = seq.gt.T_cam_obj
+    poses = [Delivery(c, c, c, _jumped(gt[c])) for c in range(3)]
+    poses.append(Delivery(3, 3, 3, _flipped(gt[3])))
+    masks = [Delivery(c, c, 1000 + c) for c in range(12)]
+    est = run(
+        RoftTracker(TINY, make_context(seq)),
+        build_observations(seq, poses=poses, masks=masks),
+    )
+    assert est[3].accepted_pose_ids == (3,)
+    dt, dr = transform_distance(np.stack([e.T_cam_obj for e in est[3:12]]), gt[3:12])
+    assert dt.max() < 0.02 and np.degrees(dr.max()) < 10.0, (dt, np.degrees(dr))

@@ -10,6 +10,7 @@ from scipy.linalg import expm
 
 from roft_sim.errors import ConfigError
 from roft_sim.geometry import CameraIntrinsics, project_points, v_o_from_v_obj
+from roft_sim.geometry.camera import backproject_pixels
 from roft_sim.geometry.rigid_flow import rigid_flow
 from roft_sim.geometry.se3 import transform_from_rt
 from roft_sim.geometry.so3 import matrix_from_rotvec, skew
@@ -22,6 +23,7 @@ from roft_sim.trackers.roft.mask_sync import PixelSet
 from roft_sim.trackers.roft.velocity_kf import (
     FlowMeasurement,
     VelocityKF,
+    depth_rate_rows,
     finite_motion_flow,
     flow_jacobian,
     flow_measurement,
@@ -550,3 +552,115 @@ def test_flow_measurement_leaves_out_the_hand_and_the_reference_reads_it():
         pixels, depth, flow, CAM, 1 / 30, VelocityKFConfig(occluder_depth_jump_m=None), stride=1
     )
     assert len(reference) == len(u) and len(default) == int((~is_hand).sum())
+
+
+def _plane_depth(cam: CameraIntrinsics, normal, offset_m: float) -> np.ndarray:
+    """(H, W) z-depth [m] of the plane ``normal . P = offset_m`` (camera frame) at every pixel."""
+    v, u = np.mgrid[0 : cam.height_px, 0 : cam.width_px]
+    ray = np.stack([(u - cam.cx_px) / cam.fx_px, (v - cam.cy_px) / cam.fy_px, np.ones(u.shape)])
+    return offset_m / np.tensordot(np.asarray(normal, dtype=np.float64), ray, axes=1)
+
+
+def _moving_plane(twist, dt, window, normal=(0.3, -0.2, 1.0), offset_m=0.6):
+    """A plane at about 0.6 m moved for ``dt`` [s] by the constant spatial ``twist`` (6,): the
+    camera, the mask of ``window``, the exact flow (``rigid_flow``), the depth of both frames
+    and the motion (4, 4) (scipy's expm)."""
+    cam = CameraIntrinsics(
+        fx_px=300.0, fy_px=300.0, cx_px=79.5, cy_px=59.5, width_px=160, height_px=120
+    )
+    n = np.asarray(normal, dtype=np.float64)
+    depth0 = _plane_depth(cam, n, offset_m)
+    motion = _exp_twist(np.asarray(twist, dtype=np.float64), dt)
+    n1 = motion[:3, :3] @ n
+    depth1 = _plane_depth(cam, n1, offset_m + n1 @ motion[:3, 3])
+    flow, valid = rigid_flow(
+        cam, depth0.astype(np.float32), np.zeros(depth0.shape, int), motion[None]
+    )
+    mask = np.zeros_like(valid)
+    mask[window] = valid[window]
+    field = FlowField(flow_px=flow.astype(np.float32), from_k=0, to_k=1)
+    return cam, mask, field, depth0, depth1, motion
+
+
+@pytest.mark.parametrize(
+    "twist",
+    [[0.0, 0.0, 0.4, 0.0, 0.0, 0.0], [0.3, -0.2, -0.4, 1.5, -1.0, 2.0]],
+    ids=["recession", "fast-spin"],
+)
+def test_depth_rate_rows_are_the_depth_change_of_each_point(twist):
+    """A slanted plane moved for 1/30 s by a constant twist, exact flow: each row's measured
+    depth change is the z change of that body point under the motion (scipy's expm, then the
+    point's own coordinates: an oracle independent of the rows' bilinear read), and the row's
+    linear model at the point's mean position reproduces it to second order in the motion."""
+    dt = 1 / 30
+    cam, mask, field, depth0, depth1, motion = _moving_plane(
+        twist, dt, (slice(30, 90), slice(40, 120))
+    )
+    cfg = VelocityKFConfig(subsampling_stride=1, depth_band_m=None, finite_motion_correction=False)
+    m = flow_measurement(PixelSet.from_mask(mask), depth0, field, cam, dt, cfg, next_depth_m=depth1)
+    rows = m.depth_rate
+    assert rows is not None and len(rows) > 0.9 * len(m)
+    uv = np.stack([rows.u_px, rows.v_px], -1).astype(np.float64)
+    P = backproject_pixels(cam, uv, depth0[rows.v_px, rows.u_px])
+    moved = P @ motion[:3, :3].T + motion[:3, 3]
+    np.testing.assert_allclose(rows.dz_m, moved[:, 2] - P[:, 2], atol=2e-6)
+    np.testing.assert_allclose(rows.J @ np.asarray(twist), rows.dz_m, atol=2e-5)
+
+
+def test_the_depth_change_measures_the_recession_a_small_patch_hides_from_the_flow():
+    """A 12x8 px patch of a plane receding at 0.3 m/s while it turns, flow with 1.5 px of
+    Gaussian noise and depth with 1 mm: the flow alone barely sees the recession (the patch's
+    image shrinks by 0.05 px a frame); the depth change of its points measures it. RMS error of
+    v_z over 8 seeds of one update from a wide prior: with the depth change under a third of
+    the flow's alone."""
+    dt = 1 / 30
+    twist = np.array([0.05, -0.1, 0.3, 0.4, -0.6, 0.3])
+    cam, mask, field, depth0, depth1, _ = _moving_plane(twist, dt, (slice(56, 64), slice(74, 86)))
+    errors = {True: [], False: []}
+    for seed in range(8):
+        rng = np.random.default_rng(seed)
+        noisy = FlowField(
+            flow_px=field.flow_px + rng.normal(0, 1.5, field.flow_px.shape).astype(np.float32),
+            from_k=0,
+            to_k=1,
+        )
+        d0 = depth0 + rng.normal(0, 0.001, depth0.shape)
+        d1 = depth1 + rng.normal(0, 0.001, depth1.shape)
+        for depth_rate in (True, False):
+            cfg = VelocityKFConfig(
+                subsampling_stride=1,
+                depth_band_m=None,
+                finite_motion_correction=False,
+                motion_model="constant",
+                cov_v0=(1.0, 1.0, 1.0),
+                cov_w0=(10.0, 10.0, 10.0),
+                depth_rate=depth_rate,
+            )
+            m = flow_measurement(PixelSet.from_mask(mask), d0, noisy, cam, dt, cfg, next_depth_m=d1)
+            assert (m.depth_rate is not None) == depth_rate
+            kf = VelocityKF(cfg)
+            assert kf.step(m, t_s=dt, dt_s=dt)
+            errors[depth_rate].append(kf.x[2] - twist[2])
+    rms = {key: float(np.sqrt(np.mean(np.square(e)))) for key, e in errors.items()}
+    assert rms[True] < rms[False] / 3, rms
+    assert rms[True] < 0.1, rms  # m/s
+
+
+def test_depth_rate_rows_skip_points_carried_onto_a_depth_edge_or_out_of_the_image():
+    """A point whose flow carries it across a 10 cm depth step, or out of the image, gives no
+    row; the rest do."""
+    cam = CameraIntrinsics(
+        fx_px=300.0, fy_px=300.0, cx_px=79.5, cy_px=59.5, width_px=160, height_px=120
+    )
+    depth0 = np.full((120, 160), 0.6)
+    depth1 = depth0.copy()
+    depth1[:, 100:] = 0.7  # an edge between columns 99 and 100
+    u = np.array([10, 20, 30, 40, 50, 60, 70, 80, 98, 150])
+    v = np.full(10, 60)
+    flow = np.zeros((10, 2))
+    flow[8, 0] = 1.5  # 98 -> 99.5: its four neighbours straddle the edge
+    flow[9, 0] = 20.0  # 150 -> 170: out of the image
+    rows = depth_rate_rows(cam, u, v, depth0[v, u], flow, depth1, 1 / 30, VelocityKFConfig())
+    assert rows is not None
+    np.testing.assert_array_equal(rows.u_px, u[:8])
+    np.testing.assert_allclose(rows.dz_m, 0.0)

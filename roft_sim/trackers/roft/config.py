@@ -195,6 +195,26 @@ class VelocityKFConfig:
     occluder_probability: float = 0.999
     """Probability of the prediction region a part's mean flow residual must leave to be
     dropped as an occluder."""
+    depth_rate: bool = True
+    """Measure the twist with the depth sensor too (range flow): each sampled point's depth
+    change over the interval, ``Z_k(u + du, v + dv) - Z_{k-1}(u, v)``, read where the flow
+    carries it, is ``dt (v_z + w_x Y - w_y X)`` at the point's mean position ``(X, Y)`` over
+    the interval: one more linear row per pixel beside the two of the flow
+    (``velocity_kf.depth_rate_rows``), with its own robust noise (the spread of the rows about
+    their own least-squares fit, at least ``depth_rate_sigma_min_m``; rows beyond
+    ``depth_rate_inlier_sigmas`` of it, read across a depth edge or off the object, are not
+    used). The flow observes motion along the line of sight only through the object's image
+    growing or shrinking, which a small or thin object barely shows; hardware flow smoothed
+    across its border then read as a recession of 1.4 m/s on a 2 cm-thick bar
+    (docs/roft.md, "Round 12"). False: the flow alone (the reference, paper eq. 9)."""
+    depth_rate_sigma_min_m: float = 0.001
+    """Floor of the depth-change noise of one point over one interval [m]: about the RMS
+    depth error of a RealSense D415 at arm's length (Intel's ``z^2 subpixel / (f b)`` gives
+    0.6 mm at 0.7 m and 1280 px, ``roft_sim.sensors.depth_noise``); the noise used is the
+    rows' own spread when larger."""
+    depth_rate_inlier_sigmas: float = 3.0
+    """Depth-change rows whose residual about their own fit exceeds this many noise standard
+    deviations are not used."""
     skip_stale_velocity: bool = True
     """When the filter could not update (too few valid pixels, no flow), give the pose UKF no
     velocity measurement for that frame; False feeds the previous twist again (the reference)."""
@@ -392,6 +412,15 @@ class VelocityKFConfig:
             raise ConfigError(
                 f"velocity.adaptation_frames must be >= 1, got {self.adaptation_frames}"
             )
+        if not (math.isfinite(self.depth_rate_sigma_min_m) and self.depth_rate_sigma_min_m > 0):
+            raise ConfigError(
+                f"velocity.depth_rate_sigma_min_m must be > 0 m, got {self.depth_rate_sigma_min_m}"
+            )
+        if not (math.isfinite(self.depth_rate_inlier_sigmas) and self.depth_rate_inlier_sigmas > 0):
+            raise ConfigError(
+                "velocity.depth_rate_inlier_sigmas must be > 0, got "
+                f"{self.depth_rate_inlier_sigmas}"
+            )
         if self.occluder_depth_jump_m is not None and not (
             math.isfinite(self.occluder_depth_jump_m) and self.occluder_depth_jump_m > 0
         ):
@@ -575,6 +604,21 @@ class PoseGateConfig:
     network must contradict the track for as long, so a burst of correlated outliers (a
     flipped detection and its stale repeats: three in 0.1 s at 15 Hz) cannot override it
     (docs/roft.md, "Round 11"). 0: the count alone."""
+    depth_override_coverage: float | None = 0.5
+    """Adaptive gate with the depth outlier test: a pose the gate would reject re-initialises
+    the track instead (as ``reinitialise_unconfirmed`` does) when the depth shows that the
+    track, not the pose, is off: rendered at the pose's capture frame, the pose covers at
+    least this fraction of the frame's mask samples, the track less than half as many (its
+    silhouette misses the object the mask and the depth see), and the track's mean depth error
+    there is more than ``outlier_rejection.gamma`` times the pose's. The gate measures
+    distance from the track, so a track that went wrong (initialised on a gross outlier that
+    agreeing outliers then confirmed, or carried off by a wrong velocity) otherwise rejects
+    the correct poses until the streak rule lets one through, 12 of them at 30 Hz
+    (docs/roft.md, "Round 12"). The pose's orientation is taken only when it also fits the
+    depth ``gamma`` times better than the track's orientation placed at the pose's position;
+    otherwise the track keeps its orientation: a flip of a near-symmetric object fits the
+    depth as well, and next to a track a few centimetres off it passes the coverage test
+    (taking it whole raised e_a by 46 deg on a held-out sequence, "Round 12"). None: off."""
     adaptive: bool = False
     """Replace the fixed bounds by a chi-square test (3 degrees of freedom each, position and
     rotation) on the pose's innovation against an isotropic variance: the exponentially
@@ -628,6 +672,11 @@ class PoseGateConfig:
         if not (math.isfinite(self.max_rotation_deg) and 0 < self.max_rotation_deg <= 180):
             raise ConfigError(
                 f"gate.max_rotation_deg must be in (0, 180], got {self.max_rotation_deg}"
+            )
+        if self.depth_override_coverage is not None and not (0 < self.depth_override_coverage <= 1):
+            raise ConfigError(
+                "gate.depth_override_coverage must be in (0, 1] (or absent: off), got "
+                f"{self.depth_override_coverage}"
             )
         if not (math.isfinite(self.min_rejection_span_s) and self.min_rejection_span_s >= 0):
             raise ConfigError(

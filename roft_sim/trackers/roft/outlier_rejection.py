@@ -93,6 +93,12 @@ class DepthOutlierTest:
 
     def errors(self, T_cam_obj: F64, samples: DepthSamples) -> F64:
         """Mean absolute depth errors ``(N,)`` [m] of the poses ``(N, 4, 4)`` (inf: no pixel)."""
+        return self.errors_and_coverage(T_cam_obj, samples)[0]
+
+    def errors_and_coverage(self, T_cam_obj: F64, samples: DepthSamples) -> tuple[F64, F64]:
+        """Mean absolute depth errors ``(N,)`` [m] of the poses ``(N, 4, 4)`` (inf: no pixel)
+        and the fraction ``(N,)`` of the valid samples each pose's render covers (0 when
+        there is no valid sample)."""
         T = np.asarray(T_cam_obj, dtype=np.float64)
         rendered = self._renderer.render_depth(T, self._small)
         if rendered.shape != (T.shape[0],) + self._small.shape:
@@ -103,7 +109,7 @@ class DepthOutlierTest:
         d = samples.depth_m.astype(np.float64)
         ok = (d > 0.0) & (d < self._depth_maximum_m)
         if not ok.any():
-            return np.full(T.shape[0], np.inf)
+            return np.full(T.shape[0], np.inf), np.zeros(T.shape[0])
         index, d = samples.index[ok], d[ok]
         v_px = index // samples.width_px
         u_px = index - v_px * samples.width_px
@@ -115,7 +121,8 @@ class DepthOutlierTest:
         count = seen.sum(axis=1)
         total = np.where(seen, np.abs(d[None, :] - r), 0.0).sum(axis=1)
         with np.errstate(invalid="ignore", divide="ignore"):
-            return np.where(count > 0, total / np.maximum(count, 1), np.inf)
+            errors = np.where(count > 0, total / np.maximum(count, 1), np.inf)
+        return errors, count / float(d.shape[0])
 
     def reject(self, T_with_pose: F64, T_without_pose: F64, samples: DepthSamples | None) -> bool:
         """True when the candidate with the pose fits the depth gamma times worse than without.

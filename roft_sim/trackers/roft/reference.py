@@ -61,6 +61,7 @@ def _reference_velocity() -> VelocityKFConfig:
         mask_erosion_px=0,  # the flow is read on the whole mask of k-1 (report 3.2)
         depth_band_m=None,  # only 0 < D < depth_maximum (report 3.2)
         occluder_depth_jump_m=None,  # every mask pixel is the object's (report 3.2)
+        depth_rate=False,  # the flow alone measures the twist (paper eq. 9, report 3.2)
         midpoint_jacobian=False,  # eq. 9 at the pixel of frame k-1 (report 3.2)
         finite_motion_correction=False,  # the flow is eq. 9's linear model alone (report 3.2)
         adapt_flow_noise=False,  # fixed R (report 3.3)
@@ -98,7 +99,8 @@ def _reference_pose() -> PoseUKFConfig:
 
 
 def _reference_gate() -> PoseGateConfig:
-    return PoseGateConfig(enable=False)  # no pose gate: only the depth test (report 6)
+    # no pose gate: only the depth test (report 6)
+    return PoseGateConfig(enable=False, depth_override_coverage=None)
 
 
 def _reference_sync() -> PoseSyncConfig:
@@ -235,7 +237,7 @@ DEVIATIONS: tuple[Deviation, ...] = (
         "adaptive_gate",
         "poses whose innovation is far beyond the spread of the accepted ones are rejected "
         "(chi-square gate on an adapted variance; flips and jumps the depth test lets through)",
-        lambda c: _rep(c, gate=_DEFAULT.gate),
+        lambda c: _rep(c, gate=_rep(_DEFAULT.gate, depth_override_coverage=None)),
     ),
     Deviation(
         "covariance_scale",
@@ -279,6 +281,20 @@ DEVIATIONS: tuple[Deviation, ...] = (
         "autocorrelation of hand-held motion towards zero (Gaussian, 0.2 s linear, 0.11 s "
         "angular)",
         _restore("pose", "coast_correlation_time_v_s", "coast_correlation_time_w_s"),
+    ),
+    Deviation(
+        "depth_rate",
+        "the velocity KF also measures the twist with each flow point's depth change over the "
+        "interval (range flow: v_z + w_x Y - w_y X), robustly weighted",
+        _restore("velocity", "depth_rate"),
+    ),
+    Deviation(
+        "depth_override",
+        "a pose the adaptive gate rejects re-initialises the track's position (and its "
+        "orientation, where the depth prefers it) when, rendered at its capture frame, it covers "
+        "the mask's depth samples, the track less than half as many, and the track fits the "
+        "depth there gamma times worse",
+        _restore("gate", "depth_override_coverage"),
     ),
 )
 """The deviations in the order the attribution table adds them; applying all of them to

@@ -29,6 +29,7 @@ import copy
 import dataclasses
 from collections import Counter
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -256,9 +257,11 @@ class RoftTracker:
         k: int,
         t_s: float,
         flow: FlowField | None,
+        depth_m: NDArray[np.floating],
     ) -> int:
         """Predicts and corrects ``kf`` with F_k read on ``prev`` (the mask and depth of the
-        frame before k); returns the pixels used (0 when the filter did not update)."""
+        frame before k) and, with ``velocity.depth_rate``, the depth ``depth_m`` (H, W) [m] of
+        frame k; returns the pixels used (0 when the filter did not update)."""
         if (
             prev is None
             or prev.pixels is None
@@ -278,6 +281,7 @@ class RoftTracker:
             self._config.velocity,
             stride=self._stride,
             linearization_twist=kf.x if kf.updates > 0 else None,
+            next_depth_m=depth_m,
         )
         if kf.step(meas, frames=dt * self._context.fps, t_s=t_s, dt_s=dt):
             return len(meas)
@@ -310,7 +314,9 @@ class RoftTracker:
         none), the covariance to add to its noise (or None) and the pixels used."""
         if obs.depth_m is None:  # dropped camera frame: no measurement at all
             return None, None, 0
-        used = self._flow_update(self._velocity_kf, self._previous, obs.k, obs.t_s, obs.flow)
+        used = self._flow_update(
+            self._velocity_kf, self._previous, obs.k, obs.t_s, obs.flow, obs.depth_m
+        )
         self._previous = self._flow_mask(obs.k, obs.t_s, pixels, obs.depth_m)
         if self._config.velocity.remeasure_on_fresh_mask:
             self._velocity_inputs[obs.k] = _VelocityInput(obs.t_s, obs.depth_m, obs.flow)
@@ -339,7 +345,7 @@ class RoftTracker:
             inp_j = self._velocity_inputs.get(j)
             if inp_j is None:  # a dropped camera frame: the filter did not run
                 continue
-            used = self._flow_update(kf, prev, j, inp_j.t_s, inp_j.flow)
+            used = self._flow_update(kf, prev, j, inp_j.t_s, inp_j.flow, inp_j.depth_m)
             prev = self._flow_mask(j, inp_j.t_s, mask_at(j), inp_j.depth_m)
             self._velocity_states[j] = copy.deepcopy(kf)
             twist, cov = self._twist_for_ukf(kf, used > 0)
@@ -495,11 +501,15 @@ class RoftTracker:
             gated = not passes and confirmed and may_reject
             spread = after
             self._reinitialising.discard(pose.detection_id)
-            if not passes and not confirmed and gate.reinitialise_unconfirmed:
+            override = self._depth_override(pose, without_pose, frame) if gated else None
+            if override is not None or (
+                not passes and not confirmed and gate.reinitialise_unconfirmed
+            ):
                 self._decisions[pose.detection_id] = True
                 self._gated.discard(pose.detection_id)
                 self._reinitialising.add(pose.detection_id)
-                return self._reinitialised_at(without_pose, pose), _NO_STREAK, spread
+                keep = override == "position"
+                return self._reinitialised_at(without_pose, pose, keep), _NO_STREAK, spread
         else:
             gated = gate_rejects(gate, predicted, pose.p_m, pose.q_wxyz, streak.count)
         if gated:
@@ -526,16 +536,54 @@ class RoftTracker:
         self._decisions[pose.detection_id] = not reject
         return (without_pose if reject else with_pose), _NO_STREAK, spread
 
-    def _reinitialised_at(self, belief: PoseBelief, pose: _Pose) -> PoseBelief:
+    def _depth_override(
+        self, pose: _Pose, track: PoseBelief, frame: _Frame
+    ) -> Literal["pose", "position"] | None:
+        """``gate.depth_override_coverage``: whether the depth at the pose's capture frame
+        shows the track, not the gated pose, off, and what of the pose to take.
+
+        The track is off when the pose's render covers at least that fraction of the mask's
+        depth samples, the track's (``track``) less than half as many, and the track's mean
+        depth error is more than the depth test's ``gamma`` times the pose's (inf where its
+        render covers no sample). Then ``"pose"`` when the pose's orientation also fits the
+        depth ``gamma`` times better than the track's orientation at the pose's position,
+        else ``"position"`` (the orientation stays the track's: a flip of a near-symmetric
+        object fits the depth as well as the track's orientation, and the depth gives no
+        reason to take it). None: no override."""
+        coverage = self._config.gate.depth_override_coverage
+        test = self._outlier_test
+        samples = frame.samples
+        if coverage is None or test is None or samples is None or len(samples) == 0:
+            return None
+        T_pose = transform_from_pq(pose.p_m, pose.q_wxyz)
+        T_track = transform_from_pq(track.x[6:9], track.q)
+        T_moved = transform_from_pq(pose.p_m, track.q)
+        error, covered = test.errors_and_coverage(np.stack([T_pose, T_track, T_moved]), samples)
+        gamma = self._config.outlier_rejection.gamma
+        if not (
+            covered[0] >= coverage and covered[1] < 0.5 * covered[0] and gamma * error[0] < error[1]
+        ):
+            return None
+        return "pose" if gamma * error[0] < error[2] else "position"
+
+    def _reinitialised_at(
+        self, belief: PoseBelief, pose: _Pose, keep_orientation: bool = False
+    ) -> PoseBelief:
         """``belief`` with its pose replaced by ``pose`` and the pose block of its covariance
         by the configured initial one (no cross-covariance with the velocities, which are
-        kept with their covariance): ``gate.reinitialise_unconfirmed``."""
+        kept with their covariance): ``gate.reinitialise_unconfirmed`` and the depth
+        override. ``keep_orientation``: the position only; the orientation and its variance
+        stay ``belief``'s."""
         fresh = self._ukf.initial_belief(pose.p_m, pose.q_wxyz)
         P = np.zeros_like(belief.P)
         P[0:6, 0:6] = belief.P[0:6, 0:6]
         P[6:12, 6:12] = fresh.P[6:12, 6:12]
+        q = fresh.q
+        if keep_orientation:
+            P[9:12, 9:12] = belief.P[9:12, 9:12]
+            q = belief.q
         x = np.concatenate([belief.x[0:6], fresh.x[6:9]])
-        return PoseBelief(x=x, q=fresh.q, P=P)
+        return PoseBelief(x=x, q=q, P=P)
 
     def _advance(self, j: int, prior: PoseBelief) -> PoseBelief:
         """Predict from j-1 to j and correct with everything known about frame j (also stores

@@ -4,7 +4,9 @@ State ``x = (v_o, w)`` [m/s, rad/s], camera frame: ``v_o`` is the velocity of th
 the camera origin, so a body point P moves as ``dP/dt = v_o + w x P``. Motion model ``F = I``,
 ``Q`` per frame (not scaled by dt). Measurements: the flow F_k (frame k-1 -> k) at every n-th
 mask pixel of frame k-1, predicted as ``dt * J(u, v, Z) x`` with the object-motion interaction
-matrix of reference report section 3.2 (depth Z of frame k-1).
+matrix of reference report section 3.2 (depth Z of frame k-1). With ``depth_rate`` (a
+deviation) each pixel also gives its depth change over the interval where the flow carries it,
+predicted as ``dt (v_z + w_x Y - w_y X)`` (range flow; :func:`depth_rate_rows`).
 
 The reference updates sequentially, one 2x2 block per pixel; with a block-diagonal R that is
 algebraically one batch update, done here in information form with a single 6x6 solve:
@@ -39,7 +41,9 @@ from roft_sim.trackers.roft.twist_rate import TwistRateFilter
 F64 = NDArray[np.float64]
 
 __all__ = [
+    "DepthRateRows",
     "FlowMeasurement",
+    "depth_rate_rows",
     "flow_measurement",
     "flow_jacobian",
     "finite_motion_flow",
@@ -49,6 +53,28 @@ __all__ = [
 
 _LIKELIHOOD_FLOOR = 1e-6
 _MIN_SPREAD = 1e-4
+
+
+@dataclass(frozen=True, slots=True)
+class DepthRateRows:
+    """The depth change of the sampled points over the interval (range flow), one linear
+    measurement row each (``VelocityKFConfig.depth_rate``)."""
+
+    u_px: NDArray[np.int64]
+    """(M,) the points' pixel columns in frame k-1."""
+    v_px: NDArray[np.int64]
+    """(M,) the points' pixel rows in frame k-1."""
+    dz_m: F64
+    """(M,) measured depth change ``Z_k(u + du, v + dv) - Z_{k-1}(u, v)`` [m]."""
+    J: F64
+    """(M, 6) ``dt * d(dz)/d(v_o, w)`` = ``dt (0, 0, 1, Y, -X, 0)`` at the point's mean
+    position over the interval [m per (m/s), m per (rad/s)], camera frame."""
+    cell_weight: F64 | None = None
+    """(M,) the weight of each row's flow grid cell (as ``FlowMeasurement.cell_weight``), or
+    None (all 1)."""
+
+    def __len__(self) -> int:
+        return int(self.dz_m.shape[0])
 
 
 @dataclass(frozen=True, slots=True)
@@ -70,6 +96,8 @@ class FlowMeasurement:
     twist instead (``finite_motion_correction``); the filter calls it at its own estimates of
     the interval (:meth:`VelocityKF.relinearized`) and updates with the result. None: ``y_px``
     is final."""
+    depth_rate: DepthRateRows | None = None
+    """The sampled points' depth changes (``depth_rate``), or None (the flow alone)."""
 
     def __len__(self) -> int:
         return int(self.y_px.shape[0])
@@ -145,6 +173,116 @@ def _finite_motion_corrected(
     point carried behind the camera)."""
     correction = finite_motion_flow(intrinsics, u, v, z, twist, dt_s) - J @ twist
     return y - correction if np.isfinite(correction).all() else y
+
+
+_DEPTH_RATE_EDGE_M = 0.02
+"""A point whose four depth neighbours at its flow-carried position differ by more than this
+[m] sits on a depth edge there: no depth-change row (bilinear depth across an edge is neither
+surface's)."""
+_DEPTH_RATE_MIN_ROWS = 6
+"""Fewer valid depth-change rows than this: none are used (their noise is not determined)."""
+
+
+def depth_rate_rows(
+    intrinsics: CameraIntrinsics,
+    u_px: NDArray[np.int64],
+    v_px: NDArray[np.int64],
+    z_m: F64,
+    flow_px: F64,
+    next_depth_m: NDArray[np.floating],
+    dt_s: float,
+    config: VelocityKFConfig,
+    cell_weight: F64 | None = None,
+) -> DepthRateRows | None:
+    """The depth change of each sampled point over the interval, where the flow carries it.
+
+    Args:
+        intrinsics: the camera.
+        u_px, v_px: (N,) the points' pixels in frame k-1.
+        z_m: (N,) their z-depth in frame k-1 [m].
+        flow_px: (N, 2) their measured flow (du, dv) to frame k [px].
+        next_depth_m: (H, W) z-depth of frame k [m] (0: no measurement).
+        dt_s: the interval [s].
+        config: the filter settings (``depth_maximum_m``, ``depth_band_m``).
+        cell_weight: (N,) the points' flow grid-cell weights, or None.
+
+    Returns:
+        The rows of the points whose new position lies inside the image on a valid, edge-free
+        depth (bilinear over its four neighbours, all measured and within
+        ``_DEPTH_RATE_EDGE_M`` of each other; within ``depth_band_m`` of the points' median
+        depth when set), or None when fewer than ``_DEPTH_RATE_MIN_ROWS`` remain.
+    """
+    h, w = next_depth_m.shape
+    u2 = u_px + flow_px[:, 0]
+    v2 = v_px + flow_px[:, 1]
+    ok = np.isfinite(u2) & np.isfinite(v2) & (u2 >= 0) & (v2 >= 0) & (u2 < w - 1) & (v2 < h - 1)
+    if np.count_nonzero(ok) < _DEPTH_RATE_MIN_ROWS:
+        return None
+    idx = np.flatnonzero(ok)
+    u2, v2 = u2[idx], v2[idx]
+    c0 = np.floor(u2).astype(np.int64)
+    r0 = np.floor(v2).astype(np.int64)
+    a = u2 - c0
+    b = v2 - r0
+    d = next_depth_m
+    corners = np.stack([d[r0, c0], d[r0, c0 + 1], d[r0 + 1, c0], d[r0 + 1, c0 + 1]], axis=1).astype(
+        np.float64
+    )
+    good = (corners > 0.0).all(axis=1) & (corners < config.depth_maximum_m).all(axis=1)
+    good &= np.ptp(corners, axis=1) <= _DEPTH_RATE_EDGE_M
+    z2 = (
+        (1 - a) * (1 - b) * corners[:, 0]
+        + a * (1 - b) * corners[:, 1]
+        + (1 - a) * b * corners[:, 2]
+        + a * b * corners[:, 3]
+    )
+    if config.depth_band_m is not None:
+        good &= np.abs(z2 - np.median(z_m)) < config.depth_band_m
+    if np.count_nonzero(good) < _DEPTH_RATE_MIN_ROWS:
+        return None
+    idx, z2, u2, v2 = idx[good], z2[good], u2[good], v2[good]
+    z1 = z_m[idx]
+    P1 = backproject_pixels(intrinsics, np.stack([u_px[idx], v_px[idx]], -1), z1)
+    P2 = backproject_pixels(intrinsics, np.stack([u2, v2], -1), z2)
+    mean = 0.5 * (P1 + P2)
+    J = np.zeros((idx.size, 6))
+    J[:, 2] = 1.0
+    J[:, 3] = mean[:, 1]
+    J[:, 4] = -mean[:, 0]
+    return DepthRateRows(
+        u_px=u_px[idx],
+        v_px=v_px[idx],
+        dz_m=z2 - z1,
+        J=J * dt_s,
+        cell_weight=None if cell_weight is None else cell_weight[idx],
+    )
+
+
+def _depth_rate_weights(
+    rows: DepthRateRows, x_prior: F64, config: VelocityKFConfig
+) -> tuple[F64, F64]:
+    """Innovations (M,) [m] of the depth-change rows from ``x_prior`` (6,) and their weights
+    (M,) [1/m^2]: the rows' own least-squares fit of the three components they observe
+    (v_z, w_x, w_y) from the prior, twice, each time dropping the rows beyond
+    ``depth_rate_inlier_sigmas`` noise deviations of it; the noise is the robust spread of the
+    kept rows' residuals, at least ``depth_rate_sigma_min_m``."""
+    innovation = rows.dz_m - rows.J @ x_prior
+    A = rows.J[:, 2:5]
+    keep = np.ones(innovation.shape[0], dtype=bool)
+    sigma = config.depth_rate_sigma_min_m
+    for _ in range(2):
+        if np.count_nonzero(keep) < _DEPTH_RATE_MIN_ROWS:
+            return innovation, np.zeros_like(innovation)
+        fit = np.linalg.lstsq(A[keep], innovation[keep], rcond=None)[0]
+        residual = innovation - A @ fit
+        sigma = max(
+            config.depth_rate_sigma_min_m, _MAD_TO_SIGMA * float(np.median(np.abs(residual[keep])))
+        )
+        keep = np.abs(residual) <= config.depth_rate_inlier_sigmas * sigma
+    weight = keep / sigma**2
+    if rows.cell_weight is not None:
+        weight = weight * rows.cell_weight
+    return innovation, weight
 
 
 _OCCLUDER_MIN_PIXELS = 12
@@ -289,6 +427,7 @@ def flow_measurement(
     *,
     stride: int | None = None,
     linearization_twist: ArrayLike | None = None,
+    next_depth_m: NDArray[np.floating] | None = None,
 ) -> FlowMeasurement:
     """Builds the flow measurement from the mask and depth of frame k-1 and the flow F_k
     (the Jacobian at each pixel of k-1, or half the pixels' median displacement further with
@@ -308,6 +447,9 @@ def flow_measurement(
             ``config.finite_motion_correction`` corrects the flow (the tracker passes the
             velocity filter's interval mean once it has one); None: the pixels' own
             least-squares twist.
+        next_depth_m: (H, W) z-depth of frame k [m]: with ``config.depth_rate``, each pixel's
+            depth change where the flow carries it is measured too (:func:`depth_rate_rows`);
+            None: the flow alone.
     """
     index = pixels.index[:: stride if stride is not None else config.subsampling_stride]
     z = np.take(depth_m.reshape(-1), index).astype(np.float64)
@@ -320,12 +462,14 @@ def flow_measurement(
         ok &= np.abs(z - np.median(z[ok])) < config.depth_band_m
     u, v, z, f = u[ok], v[ok], z[ok], f[ok]
     y = np.stack([f.real, f.imag], axis=1).astype(np.float64)
+    flow_px = y  # as measured: where each point went (the corrections below change y)
     J: F64 | None = None
     if config.occluder_depth_jump_m is not None and u.size >= _OCCLUDER_MIN_PIXELS:
         J = _measurement_jacobian(intrinsics, u, v, z, y, dt_s, config)
         keep = occluder_free(pixels, depth_m, u, v, z, y, J, config)
         if not keep.all():  # the midpoint moves with the pixels kept
             u, v, z, y, J = u[keep], v[keep], z[keep], y[keep], None
+            flow_px = y
     if J is None:
         J = _measurement_jacobian(intrinsics, u, v, z, y, dt_s, config)
     relinearize: Callable[[F64], F64] | None = None
@@ -352,6 +496,11 @@ def flow_measurement(
             (v // g) * (w // g + 1) + u // g, return_inverse=True, return_counts=True
         )
         cell_weight = 1.0 / counts[inverse].astype(np.float64)
+    depth_rate = None
+    if config.depth_rate and next_depth_m is not None and u.size:
+        depth_rate = depth_rate_rows(
+            intrinsics, u, v, z, flow_px, next_depth_m, dt_s, config, cell_weight
+        )
     return FlowMeasurement(
         y_px=y,
         J=J,
@@ -359,6 +508,7 @@ def flow_measurement(
         v_px=v,
         cell_weight=cell_weight,
         relinearize=relinearize,
+        depth_rate=depth_rate,
     )
 
 
@@ -497,6 +647,35 @@ class VelocityKF:
             R = np.maximum(R, spread**2)
         return innovation, lik, R, first
 
+    def _weighted_rows(
+        self, measurement: FlowMeasurement, x_prior: F64, P_prior: F64
+    ) -> tuple[F64, F64, F64, F64]:
+        """Every measurement row of one update, weighted, from the prior twist.
+
+        Args:
+            measurement: the flow pixels and, with ``depth_rate``, their depth changes.
+            x_prior: (6,) prior spatial twist ``(v_o [m/s], w [rad/s])``, camera frame.
+            P_prior: (6, 6) its covariance.
+
+        Returns:
+            ``(J (M, 6), W (M,), innovation (M,), R (2,) [px^2])``: the flow's two rows per
+            pixel (``dt * J`` [px per (m/s), px per (rad/s)], weights ``lik / R`` [1/px^2],
+            innovations [px]; :meth:`_robust_weights`) followed by the depth-change rows
+            ([m per (m/s), m per (rad/s)], [1/m^2], [m]; :func:`_depth_rate_weights`), and the
+            flow noise.
+        """
+        innovation, lik, R, _ = self._robust_weights(measurement, x_prior, P_prior)
+        J = measurement.J.reshape(-1, 6)
+        W = (lik[:, None] / R[None, :]).reshape(-1)
+        nu = innovation.reshape(-1)
+        rows = measurement.depth_rate
+        if rows is not None and self._config.depth_rate and len(rows):
+            nu_z, W_z = _depth_rate_weights(rows, x_prior, self._config)
+            J = np.vstack([J, rows.J])
+            W = np.concatenate([W, W_z])
+            nu = np.concatenate([nu, nu_z])
+        return J, W, nu, R
+
     def _solve(self, P_pred: F64, J2: F64, innovation: F64, weight: F64) -> tuple[F64, F64]:
         JtW = J2.T * weight  # (6, 2N)
         info = np.linalg.inv(P_pred) + JtW @ J2
@@ -541,14 +720,9 @@ class VelocityKF:
             return True
         self.updates += 1
         x_pred, P_pred = self._interval_prior(frames, t_s, dt_s)
-        innovation, lik, R, (dx, P_post) = self._robust_weights(measurement, x_pred, P_pred)
-        J2 = measurement.J.reshape(-1, 6)
-        if cfg.adapt_flow_noise:
-            dx, P_post = self._solve(
-                P_pred, J2, innovation, (lik[:, None] / R[None, :]).reshape(-1)
-            )
+        J2, W, innovation, R = self._weighted_rows(measurement, x_pred, P_pred)
+        dx, P_post = self._solve(P_pred, J2, innovation, W)
         self.flow_sigma_px = np.sqrt(R)
-        W = (lik[:, None] / R[None, :]).reshape(-1)
         self.fit = _least_squares(J2, W, innovation, x_pred)
         if cfg.adapt_process_noise:
             # innovation-based covariance matching on the measurement-only estimate x_ls of this
@@ -687,10 +861,8 @@ class VelocityKF:
         mean_pred = M @ X_pred
         P_mean = M @ P_pred @ M.T
         # the constant model's weights and flow noise, with the interval mean as the prior
-        innovation, lik, R, _ = self._robust_weights(measurement, mean_pred, P_mean)
-        J2 = measurement.J.reshape(-1, 6)
+        J2, W, innovation, R = self._weighted_rows(measurement, mean_pred, P_mean)
         self.flow_sigma_px = np.sqrt(R)
-        W = (lik[:, None] / R[None, :]).reshape(-1)
         JtW = J2.T * W
         info_ls = JtW @ J2
         try:
@@ -738,9 +910,10 @@ def _least_squares(J2: F64, W: F64, innovation: F64, x_prior: F64) -> tuple[F64,
     """The pixels' own weighted least-squares twist and its information.
 
     Args:
-        J2: (2N, 6) stacked flow Jacobian [px per (m/s), px per (rad/s)].
-        W: (2N,) weights (robust weight / flow variance) [1/px^2].
-        innovation: (N, 2) flow minus the prediction of ``x_prior`` [px].
+        J2: (M, 6) every measurement row's Jacobian (the flow's two per pixel [px per (m/s),
+            px per (rad/s)], then any depth-change rows [m per (m/s), m per (rad/s)]).
+        W: (M,) their weights (robust weight / noise variance) [1/px^2, 1/m^2].
+        innovation: (M,) measurement minus the prediction of ``x_prior`` [px, m].
         x_prior: (6,) the twist the innovation was taken from [m/s, rad/s].
 
     Returns:
