@@ -23,6 +23,7 @@ from roft_sim.trackers.roft.mask_sync import PixelSet
 from roft_sim.trackers.roft.velocity_kf import (
     FlowMeasurement,
     VelocityKF,
+    _depth_rate_weights,
     depth_rate_rows,
     finite_motion_flow,
     flow_jacobian,
@@ -664,3 +665,24 @@ def test_depth_rate_rows_skip_points_carried_onto_a_depth_edge_or_out_of_the_ima
     assert rows is not None
     np.testing.assert_array_equal(rows.u_px, u[:8])
     np.testing.assert_allclose(rows.dz_m, 0.0)
+
+
+def test_depth_rate_rows_on_a_steep_flank_weigh_less():
+    """Each row carries the depth gradient where it was read (a tilted plane: the analytic
+    gradient's norm, by central differences of the exact depth), and its variance adds the
+    flow's error carried through that gradient: with a 1 px flow noise, rows read where the
+    plane is 4 times steeper weigh less, equal residuals or not."""
+    cam = CameraIntrinsics(
+        fx_px=300.0, fy_px=300.0, cx_px=79.5, cy_px=59.5, width_px=160, height_px=120
+    )
+    depth = 0.6 + 0.002 * np.mgrid[0:120, 0:160][1].astype(np.float64)  # 2 mm per column
+    depth[:, 80:] = 0.6 + 0.16 + 0.008 * (np.arange(80, 160) - 80)  # 8 mm per column
+    u = np.array([20, 30, 40, 50, 60, 100, 110, 120, 130, 140])
+    v = np.full(10, 60)
+    flow = np.full((10, 2), 0.25)
+    cfg = VelocityKFConfig(depth_band_m=None)
+    rows = depth_rate_rows(cam, u, v, depth[v, u], flow, depth, 1 / 30, cfg)
+    assert rows is not None
+    np.testing.assert_allclose(rows.slope_m_per_px, np.where(u < 80, 0.002, 0.008), rtol=1e-9)
+    _, weight = _depth_rate_weights(rows, np.zeros(6), 1.0, cfg)
+    assert (weight[u < 80] > 4 * weight[u >= 80]).all(), weight

@@ -201,9 +201,10 @@ class VelocityKFConfig:
     carries it, is ``dt (v_z + w_x Y - w_y X)`` at the point's mean position ``(X, Y)`` over
     the interval: one more linear row per pixel beside the two of the flow
     (``velocity_kf.depth_rate_rows``), with its own robust noise (the spread of the rows about
-    their own least-squares fit, at least ``depth_rate_sigma_min_m``; rows beyond
-    ``depth_rate_inlier_sigmas`` of it, read across a depth edge or off the object, are not
-    used). The flow observes motion along the line of sight only through the object's image
+    their own least-squares fit, at least ``depth_rate_sigma_min_m``, plus the flow's noise
+    carried through the depth gradient where the row was read, so that rows on an object's
+    steep flanks weigh less; rows beyond ``depth_rate_inlier_sigmas`` of it, read across a
+    depth edge or off the object, are not used). The flow observes motion along the line of sight only through the object's image
     growing or shrinking, which a small or thin object barely shows; hardware flow smoothed
     across its border then read as a recession of 1.4 m/s on a 2 cm-thick bar
     (docs/roft.md, "Round 12"). False: the flow alone (the reference, paper eq. 9)."""

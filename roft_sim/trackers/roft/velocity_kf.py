@@ -69,6 +69,9 @@ class DepthRateRows:
     J: F64
     """(M, 6) ``dt * d(dz)/d(v_o, w)`` = ``dt (0, 0, 1, Y, -X, 0)`` at the point's mean
     position over the interval [m per (m/s), m per (rad/s)], camera frame."""
+    slope_m_per_px: F64
+    """(M,) the depth gradient's norm of frame k where the point was read [m/px]: a flow
+    error of e px moves the read depth by about ``slope * e``."""
     cell_weight: F64 | None = None
     """(M,) the weight of each row's flow grid cell (as ``FlowMeasurement.cell_weight``), or
     None (all 1)."""
@@ -240,7 +243,11 @@ def depth_rate_rows(
         good &= np.abs(z2 - np.median(z_m)) < config.depth_band_m
     if np.count_nonzero(good) < _DEPTH_RATE_MIN_ROWS:
         return None
-    idx, z2, u2, v2 = idx[good], z2[good], u2[good], v2[good]
+    slope = 0.5 * np.hypot(
+        (corners[:, 1] - corners[:, 0]) + (corners[:, 3] - corners[:, 2]),
+        (corners[:, 2] - corners[:, 0]) + (corners[:, 3] - corners[:, 1]),
+    )
+    idx, z2, u2, v2, slope = idx[good], z2[good], u2[good], v2[good], slope[good]
     z1 = z_m[idx]
     P1 = backproject_pixels(intrinsics, np.stack([u_px[idx], v_px[idx]], -1), z1)
     P2 = backproject_pixels(intrinsics, np.stack([u2, v2], -1), z2)
@@ -254,32 +261,42 @@ def depth_rate_rows(
         v_px=v_px[idx],
         dz_m=z2 - z1,
         J=J * dt_s,
+        slope_m_per_px=slope,
         cell_weight=None if cell_weight is None else cell_weight[idx],
     )
 
 
 def _depth_rate_weights(
-    rows: DepthRateRows, x_prior: F64, config: VelocityKFConfig
+    rows: DepthRateRows, x_prior: F64, flow_sigma_px: float, config: VelocityKFConfig
 ) -> tuple[F64, F64]:
     """Innovations (M,) [m] of the depth-change rows from ``x_prior`` (6,) and their weights
-    (M,) [1/m^2]: the rows' own least-squares fit of the three components they observe
-    (v_z, w_x, w_y) from the prior, twice, each time dropping the rows beyond
-    ``depth_rate_inlier_sigmas`` noise deviations of it; the noise is the robust spread of the
-    kept rows' residuals, at least ``depth_rate_sigma_min_m``."""
+    (M,) [1/m^2].
+
+    Each row's variance is ``sigma^2 + (slope * flow_sigma_px)^2``: the depth noise ``sigma``
+    and the flow's error carried through the depth gradient where the point is read (a point
+    read on a steep flank, an object's limb, measures its depth change poorly). ``sigma`` is
+    the robust spread of the rows' residuals about their own weighted least-squares fit of the
+    three components they observe (v_z, w_x, w_y), at least ``depth_rate_sigma_min_m``; twice,
+    each time dropping the rows beyond ``depth_rate_inlier_sigmas`` of their standard
+    deviation."""
     innovation = rows.dz_m - rows.J @ x_prior
     A = rows.J[:, 2:5]
+    spread = (rows.slope_m_per_px * flow_sigma_px) ** 2
     keep = np.ones(innovation.shape[0], dtype=bool)
     sigma = config.depth_rate_sigma_min_m
+    variance = sigma**2 + spread
     for _ in range(2):
         if np.count_nonzero(keep) < _DEPTH_RATE_MIN_ROWS:
             return innovation, np.zeros_like(innovation)
-        fit = np.linalg.lstsq(A[keep], innovation[keep], rcond=None)[0]
+        w = np.sqrt(1.0 / variance[keep])
+        fit = np.linalg.lstsq(A[keep] * w[:, None], innovation[keep] * w, rcond=None)[0]
         residual = innovation - A @ fit
         sigma = max(
             config.depth_rate_sigma_min_m, _MAD_TO_SIGMA * float(np.median(np.abs(residual[keep])))
         )
-        keep = np.abs(residual) <= config.depth_rate_inlier_sigmas * sigma
-    weight = keep / sigma**2
+        variance = sigma**2 + spread
+        keep = np.abs(residual) <= config.depth_rate_inlier_sigmas * np.sqrt(variance)
+    weight = keep / variance
     if rows.cell_weight is not None:
         weight = weight * rows.cell_weight
     return innovation, weight
@@ -670,7 +687,8 @@ class VelocityKF:
         nu = innovation.reshape(-1)
         rows = measurement.depth_rate
         if rows is not None and self._config.depth_rate and len(rows):
-            nu_z, W_z = _depth_rate_weights(rows, x_prior, self._config)
+            flow_sigma_px = float(np.sqrt(np.mean(R)))
+            nu_z, W_z = _depth_rate_weights(rows, x_prior, flow_sigma_px, self._config)
             J = np.vstack([J, rows.J])
             W = np.concatenate([W, W_z])
             nu = np.concatenate([nu, nu_z])
