@@ -204,10 +204,11 @@ class VelocityKFConfig:
     their own least-squares fit, at least ``depth_rate_sigma_min_m``, plus the flow's noise
     carried through the depth gradient where the row was read, so that rows on an object's
     steep flanks weigh less; rows beyond ``depth_rate_inlier_sigmas`` of it, read across a
-    depth edge or off the object, are not used). The flow observes motion along the line of sight only through the object's image
-    growing or shrinking, which a small or thin object barely shows; hardware flow smoothed
-    across its border then read as a recession of 1.4 m/s on a 2 cm-thick bar
-    (docs/roft.md, "Round 12"). False: the flow alone (the reference, paper eq. 9)."""
+    depth edge or off the object, are not used). The flow observes motion along the line of
+    sight only through the object's image growing or shrinking, which a small or thin object
+    barely shows; hardware flow smoothed across its border then read as a recession of 1.4 m/s
+    on a 2 cm-thick bar (docs/roft.md, "Round 12"). False: the flow alone (the reference,
+    paper eq. 9)."""
     depth_rate_sigma_min_m: float = 0.001
     """Floor of the depth-change noise of one point over one interval [m]: about the RMS
     depth error of a RealSense D415 at arm's length (Intel's ``z^2 subpixel / (f b)`` gives
