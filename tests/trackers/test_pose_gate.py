@@ -330,7 +330,10 @@ def test_a_pose_after_a_stretch_without_poses_is_tested_against_the_drift_it_all
     from the truth. With a gate whose spread is about 2.5 degrees and 1.2 cm per axis, the
     correct pose of frame 36 fails a test sized for a 6-frame horizon and is gated (the filter
     stays off: ``horizon_scaling`` off); tested against 24 / 6 times the spread it is fused,
-    and the track is back within 10 degrees and 2 cm from its arrival."""
+    and the track is back within 12 degrees and 2 cm from its arrival (11.1 degrees and 1.9 cm
+    since round 13: the exact flow of frames 37-42 is weighed as exact, so the UKF holds its
+    orientation more firmly against the one pose; 9.7 degrees without that, 15.2 and 6.8 cm
+    while the pose is gated)."""
     seq = small_seq
     gt = seq.gt.T_cam_obj
     flows = [seq.flow(k, "gt") for k in range(len(seq))]
@@ -361,7 +364,7 @@ def test_a_pose_after_a_stretch_without_poses_is_tested_against_the_drift_it_all
         assert fused == scaling and (est[42].rejected_pose_ids == (3,)) != scaling
         dt, dr = transform_distance(np.stack([e.T_cam_obj for e in est[42:]]), gt[42:])
         worst[scaling] = (float(np.degrees(dr.max())), float(dt.max()))
-    assert worst[True][0] < 10.0 and worst[True][1] < 0.02, worst
+    assert worst[True][0] < 12.0 and worst[True][1] < 0.02, worst
     assert worst[False][0] > 14.0 and worst[False][1] > 0.04, worst
 
 

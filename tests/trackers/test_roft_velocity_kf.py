@@ -445,13 +445,15 @@ def test_constant_acceleration_model_needs_the_frame_times_and_excludes_midpoint
         VelocityKFConfig(motion_model="constant_acceleration", midpoint_timing=True)
 
 
-def _rms_w_error_on_a_turning_small_object(config: VelocityKFConfig) -> float:
+def _rms_w_error_on_a_turning_small_object(
+    config: VelocityKFConfig, flow_noise_px: float = 0.05, kf: VelocityKF | None = None
+) -> float:
     """RMS error of w [rad/s] over frames 10-59 of a velocity KF (at ``CAM``'s 640 px width) on
-    flow with 0.05 px of noise, from 150 pixels of a 40 x 60 px patch at 0.65 m with +-1.5 cm of
-    relief turning about its centre at up to 2 rad/s: a small object, whose out-of-plane rotation
-    shows only through its depth differences."""
+    flow with ``flow_noise_px`` of noise, from 150 pixels of a 40 x 60 px patch at 0.65 m with
+    +-1.5 cm of relief turning about its centre at up to 2 rad/s: a small object, whose
+    out-of-plane rotation shows only through its depth differences."""
     rng = np.random.default_rng(11)
-    kf = VelocityKF(config, width_px=CAM.width_px)
+    kf = kf if kf is not None else VelocityKF(config, width_px=CAM.width_px)
     n = 150
     u = CAM.cx_px + rng.uniform(-20.0, 20.0, n)
     v = CAM.cy_px + rng.uniform(-30.0, 30.0, n)
@@ -461,30 +463,82 @@ def _rms_w_error_on_a_turning_small_object(config: VelocityKFConfig) -> float:
         t = k / 30
         w = 2.0 * np.array([np.sin(2.0 * t), np.cos(1.5 * t), 0.3 * np.sin(t)])
         twist = np.r_[-np.cross(w, [0.0, 0.0, 0.65]), w]
-        y = J @ twist + rng.normal(0.0, 0.05, (n, 2))
+        y = J @ twist + rng.normal(0.0, flow_noise_px, (n, 2))
         assert kf.step(FlowMeasurement(y_px=y, J=J, u_px=u, v_px=v))
         errors.append(kf.x[3:] - w)
     return float(np.sqrt(np.mean(np.sum(np.square(errors[10:]), axis=1))))
 
 
 def test_the_shipped_exact_flow_config_follows_flow_the_default_weighs_as_nvof():
-    """``scenarios/trackers/roft_exact_flow.toml`` changes only ``velocity.cov_flow``; on
-    nearly exact flow (0.05 px) the default's NVOF-level flow noise (0.5 px at 640 px, a floor
-    of the residual-spread estimate) makes the filter trail the weakly observed w_x / w_y,
-    while the shipped config's lets the residual spread set the noise (docs/roft.md, "Round
-    8": GT inputs, TUM room2 at 640x360, e_w 15.7 -> 6.0 deg/s)."""
+    """``scenarios/trackers/roft_exact_flow.toml`` changes only ``velocity.cov_flow`` (and fixes
+    it: no ``exact_flow_spread_px``); on nearly exact flow (0.05 px, above what the default
+    recognises as exact) the default's NVOF-level flow noise (0.5 px at 640 px, a floor of the
+    residual-spread estimate) makes the filter trail the weakly observed w_x / w_y, while the
+    shipped config's lets the residual spread set the noise (docs/roft.md, "Round 8": GT
+    inputs, TUM room2 at 640x360, e_w 15.7 -> 6.0 deg/s)."""
     path = scenarios_dir() / "trackers" / "roft_exact_flow.toml"
     exact = load_tracker_config(get_tracker_spec("roft"), path)
     default = RoftConfig()
     assert exact.velocity.cov_flow == (0.01, 0.01)
-    assert dataclasses.replace(exact.velocity, cov_flow=default.velocity.cov_flow) == (
-        default.velocity
-    )
+    assert exact.velocity.exact_flow_spread_px is None
+    assert dataclasses.replace(
+        exact.velocity,
+        cov_flow=default.velocity.cov_flow,
+        exact_flow_spread_px=default.velocity.exact_flow_spread_px,
+    ) == (default.velocity)
     assert dataclasses.replace(exact, velocity=default.velocity) == default
     rms_default = _rms_w_error_on_a_turning_small_object(default.velocity)
     rms_exact = _rms_w_error_on_a_turning_small_object(exact.velocity)
     assert rms_exact < 0.06  # 0.041 rad/s
     assert rms_default > 0.09  # 0.110 rad/s: the lag
+
+
+def test_flow_that_fits_to_a_hundredth_of_a_pixel_is_weighed_as_exact():
+    """``exact_flow_spread_px`` (default 0.01 px): on flow with 0.001 px of noise (what exact
+    flow leaves after the fit) the default lowers its noise to the shipped exact-flow
+    configuration's and follows the turns as that configuration does (0.0015 rad/s RMS), where
+    without it the NVOF-level noise makes it trail them (0.079); on 0.05 px flow (an
+    estimator's) its noise stays the configured one, to the bit."""
+    default = VelocityKFConfig()
+    assert default.exact_flow_spread_px == 0.01
+    off = dataclasses.replace(default, exact_flow_spread_px=None)
+    exact_config = dataclasses.replace(default, cov_flow=(0.01, 0.01), exact_flow_spread_px=None)
+    rms = _rms_w_error_on_a_turning_small_object(default, flow_noise_px=0.001)
+    rms_off = _rms_w_error_on_a_turning_small_object(off, flow_noise_px=0.001)
+    rms_exact = _rms_w_error_on_a_turning_small_object(exact_config, flow_noise_px=0.001)
+    assert rms < 0.01 and abs(rms - rms_exact) < 0.002, (rms, rms_exact)
+    assert rms_off > 0.07, rms_off
+    kf = VelocityKF(default, width_px=CAM.width_px)
+    kf_off = VelocityKF(off, width_px=CAM.width_px)
+    estimated = _rms_w_error_on_a_turning_small_object(default, kf=kf)
+    assert estimated == _rms_w_error_on_a_turning_small_object(off, kf=kf_off)
+    np.testing.assert_array_equal(kf.flow_sigma_px, np.sqrt(default.flow_variance_px2(640)))
+    with pytest.raises(ConfigError, match="exact_flow_spread_px"):
+        VelocityKFConfig(exact_flow_spread_px=0.0)
+
+
+def test_only_dense_flow_of_distinct_vectors_counts_as_exact():
+    """Noise-free flow lowers R to a hundredth when it is dense with distinct vectors; the same
+    values read from a 4x4 grid (NVOF's: a small object's few distinct vectors fit six
+    parameters without residual whatever their error), or a dense flow of a few repeated
+    vectors (a still object's quantised flow), leave R the configured one."""
+    rng = np.random.default_rng(3)
+    n = 150
+    u = CAM.cx_px + rng.uniform(-20.0, 20.0, n)
+    v = CAM.cy_px + rng.uniform(-30.0, 30.0, n)
+    J = flow_jacobian(CAM, u, v, 0.65 + rng.uniform(-0.015, 0.015, n), 1 / 30)
+    y = J @ np.array([0.05, -0.02, 0.01, 0.5, -0.3, 0.2])
+    R = np.asarray(VelocityKFConfig().flow_variance_px2(CAM.width_px))
+    repeated = np.repeat(y[:6], n // 6, axis=0)
+    cases = [
+        (FlowMeasurement(y_px=y, J=J, u_px=u, v_px=v), 0.01),
+        (FlowMeasurement(y_px=y, J=J, u_px=u, v_px=v, grid_px=4), 1.0),
+        (FlowMeasurement(y_px=repeated, J=J[: len(repeated)], u_px=u, v_px=v), 1.0),
+    ]
+    for measurement, ratio in cases:
+        kf = VelocityKF(VelocityKFConfig(), width_px=CAM.width_px)
+        assert kf.step(measurement)
+        np.testing.assert_allclose(kf.flow_sigma_px**2, R * ratio, rtol=1e-12)
 
 
 def _object_and_hand(hand_twist, hand_in_front=True):

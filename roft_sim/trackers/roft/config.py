@@ -115,6 +115,19 @@ class VelocityKFConfig:
     """Estimate the flow noise from the data: each update uses
     ``max(cov_flow, s^2)`` with s the robust (1.4826 MAD) spread of the post-fit residuals of the
     pixels, per component, so the filter's covariance follows the actual flow quality."""
+    exact_flow_spread_px: float | None = 0.01
+    """With ``adapt_flow_noise``: a residual spread ``s`` (the larger component's) below this
+    [px] marks a flow no image-based estimator delivers (exact or synthetic flow: pixels that
+    fit the rigid motion to a hundredth of a pixel), and the update's noise is
+    ``cov_flow * max((s / exact_flow_spread_px)^2, 0.01)``: a hundredth of the configured noise
+    (the shipped exact-flow configuration's) once ``s`` is a tenth of this or less. Only a dense
+    flow of nearly all distinct vectors qualifies (``velocity_kf.VelocityKF._exact_flow_ratio``).
+    The
+    configured noise describes an estimated flow, whose smooth errors the fit absorbs (its
+    residuals understate its error; docs/roft.md, "Round 8"): exact flow weighed as such made
+    the filter trail the turns of a small object by 2-3 frames. Estimated flows have residual
+    spreads of several hundredths of a pixel and more (NVOF's quarter-pixel steps alone give
+    0.07 px), so for them nothing changes. None: off."""
     independent_pixels_per_cell: bool = True
     """Count the pixels sampled inside one flow grid cell (e.g. the 4x4 cells of NVOF) as one
     measurement (their weights are divided by their number): they read the same vector, and
@@ -417,6 +430,13 @@ class VelocityKFConfig:
         if not (math.isfinite(self.depth_rate_sigma_min_m) and self.depth_rate_sigma_min_m > 0):
             raise ConfigError(
                 f"velocity.depth_rate_sigma_min_m must be > 0 m, got {self.depth_rate_sigma_min_m}"
+            )
+        if self.exact_flow_spread_px is not None and not (
+            math.isfinite(self.exact_flow_spread_px) and self.exact_flow_spread_px > 0
+        ):
+            raise ConfigError(
+                "velocity.exact_flow_spread_px must be > 0 px (or absent: off), got "
+                f"{self.exact_flow_spread_px}"
             )
         if not (math.isfinite(self.depth_rate_inlier_sigmas) and self.depth_rate_inlier_sigmas > 0):
             raise ConfigError(

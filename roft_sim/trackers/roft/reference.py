@@ -65,6 +65,7 @@ def _reference_velocity() -> VelocityKFConfig:
         midpoint_jacobian=False,  # eq. 9 at the pixel of frame k-1 (report 3.2)
         finite_motion_correction=False,  # the flow is eq. 9's linear model alone (report 3.2)
         adapt_flow_noise=False,  # fixed R (report 3.3)
+        exact_flow_spread_px=None,  # fixed R (report 3.3)
         independent_pixels_per_cell=False,  # every sampled pixel is one measurement (report 3.4)
         adapt_process_noise=False,  # fixed Q per step (report 3.1)
         skip_stale_velocity=False,  # the KF mean is fed to the UKF every frame (report 1.3)
@@ -215,8 +216,11 @@ DEVIATIONS: tuple[Deviation, ...] = (
     ),
     Deviation(
         "adaptive_flow_noise",
-        "flow R from the robust residual spread; one measurement per flow grid cell",
-        _restore("velocity", "adapt_flow_noise", "independent_pixels_per_cell"),
+        "flow R from the robust residual spread, lowered for flow that fits to a hundredth "
+        "of a pixel (exact flow); one measurement per flow grid cell",
+        _restore(
+            "velocity", "adapt_flow_noise", "exact_flow_spread_px", "independent_pixels_per_cell"
+        ),
     ),
     Deviation(
         "skip_stale_velocity",

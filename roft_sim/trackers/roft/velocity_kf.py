@@ -101,6 +101,8 @@ class FlowMeasurement:
     is final."""
     depth_rate: DepthRateRows | None = None
     """The sampled points' depth changes (``depth_rate``), or None (the flow alone)."""
+    grid_px: int = 1
+    """Image pixels per cell of the flow field the vectors were read from (1: dense)."""
 
     def __len__(self) -> int:
         return int(self.y_px.shape[0])
@@ -178,6 +180,13 @@ def _finite_motion_corrected(
     return y - correction if np.isfinite(correction).all() else y
 
 
+_EXACT_FLOW_NOISE_RATIO = 0.01
+"""Smallest factor on the flow noise that ``exact_flow_spread_px`` applies: that of the shipped
+exact-flow configuration (``scenarios/trackers/roft_exact_flow.toml``)."""
+_EXACT_FLOW_MIN_VECTORS = 30
+"""``exact_flow_spread_px`` needs at least this many distinct flow vectors (and 90 % of the
+pixels' vectors distinct): five times the twist's six parameters, so that a small residual
+spread is evidence, not a fit of too few values."""
 _DEPTH_RATE_EDGE_M = 0.02
 """A point whose four depth neighbours at its flow-carried position differ by more than this
 [m] sits on a depth edge there: no depth-change row (bilinear depth across an edge is neither
@@ -526,6 +535,7 @@ def flow_measurement(
         cell_weight=cell_weight,
         relinearize=relinearize,
         depth_rate=depth_rate,
+        grid_px=flow.grid_px,
     )
 
 
@@ -662,7 +672,43 @@ class VelocityKF:
             residual = y - J @ (x_prior + first[0])
             spread = _MAD_TO_SIGMA * np.median(np.abs(residual), axis=0)
             R = np.maximum(R, spread**2)
+            if cfg.exact_flow_spread_px is not None:
+                R = R * self._exact_flow_ratio(measurement, lik, x_prior, R)
         return innovation, lik, R, first
+
+    def _exact_flow_ratio(
+        self, measurement: FlowMeasurement, lik: F64, x_prior: F64, R: F64
+    ) -> float:
+        """``exact_flow_spread_px``: the factor on the flow noise, from the robust spread of the
+        pixels' residuals about their own weighted least-squares twist (no prior: the prior's
+        lag would show in the residuals of any flow), 1 for any estimated flow.
+
+        Only a dense flow (one vector per pixel) whose vectors are nearly all distinct, at least
+        ``_EXACT_FLOW_MIN_VECTORS`` of them, can count as exact: a few distinct vectors (a
+        small object on NVOF's 4x4 grid, quantised flow of a still object) are fitted by six
+        parameters without residual whatever their error.
+
+        Args:
+            measurement: the pixels (``J`` (N, 2, 6), ``y_px`` (N, 2) [px], ``grid_px``).
+            lik: (N,) their robust weights.
+            x_prior: (6,) the twist the flow is linearised about [m/s, rad/s].
+            R: (2,) the flow noise [px^2] (the weights' scale only).
+        """
+        J, y = measurement.J, measurement.y_px
+        if measurement.grid_px != 1 or len(y) < _EXACT_FLOW_MIN_VECTORS:
+            return 1.0
+        distinct = len(np.unique(y, axis=0))
+        if distinct < max(_EXACT_FLOW_MIN_VECTORS, 0.9 * len(y)):
+            return 1.0
+        J2 = J.reshape(-1, 6)
+        fit = _least_squares(
+            J2, (lik[:, None] / R[None, :]).reshape(-1), (y - J @ x_prior).reshape(-1), x_prior
+        )
+        if fit is None:
+            return 1.0
+        spread = _MAD_TO_SIGMA * float(np.median(np.abs(y - J @ fit[0]), axis=0).max())
+        ratio = (spread / float(self._config.exact_flow_spread_px or np.inf)) ** 2
+        return min(max(ratio, _EXACT_FLOW_NOISE_RATIO), 1.0)
 
     def _weighted_rows(
         self, measurement: FlowMeasurement, x_prior: F64, P_prior: F64
