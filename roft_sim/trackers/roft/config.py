@@ -127,7 +127,8 @@ class VelocityKFConfig:
     residuals understate its error; docs/roft.md, "Round 8"): exact flow weighed as such made
     the filter trail the turns of a small object by 2-3 frames. Estimated flows have residual
     spreads of several hundredths of a pixel and more (NVOF's quarter-pixel steps alone give
-    0.07 px), so for them nothing changes. None: off."""
+    0.07 px), so for them nothing changes (measured: the stress benchmark's NVOF-like and
+    ``gt+noise`` flows to the last digit; DIS by 0.001 cm in one cell of 15). None: off."""
     independent_pixels_per_cell: bool = True
     """Count the pixels sampled inside one flow grid cell (e.g. the 4x4 cells of NVOF) as one
     measurement (their weights are divided by their number): they read the same vector, and
