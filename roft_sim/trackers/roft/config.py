@@ -45,6 +45,12 @@ def _check_positive(
             raise ConfigError(f"{owner}.{name} must be finite and {need}, got {values}")
 
 
+def _check_optional_positive(owner: str, name: str, value: float | None, unit: str) -> None:
+    """``value`` [``unit``] finite and > 0, or None (off; ``"none"`` in TOML)."""
+    if value is not None and not (math.isfinite(value) and value > 0):
+        raise ConfigError(f'{owner}.{name} must be > 0 {unit} (or "none": off), got {value}')
+
+
 @dataclass(frozen=True, slots=True, kw_only=True)
 class MaskSyncConfig:
     """Flow-aided mask synchronisation (paper eqs. 1-3)."""
@@ -406,51 +412,27 @@ class VelocityKFConfig:
             raise ConfigError(
                 f"velocity.mask_erosion_m must be in [0, 0.1] m, got {self.mask_erosion_m}"
             )
-        if self.depth_band_m is not None and not (
-            math.isfinite(self.depth_band_m) and self.depth_band_m > 0
-        ):
-            raise ConfigError(
-                f"velocity.depth_band_m must be > 0 m (or absent), got {self.depth_band_m}"
-            )
+        _check_optional_positive("velocity", "depth_band_m", self.depth_band_m, "m")
         if not 0 <= self.mask_erosion_max_removed < 1:
             raise ConfigError(
                 f"velocity.mask_erosion_max_removed must be in [0, 1), got "
                 f"{self.mask_erosion_max_removed}"
             )
-        if self.noise_reference_width_px is not None and not (
-            math.isfinite(self.noise_reference_width_px) and self.noise_reference_width_px > 0
-        ):
-            raise ConfigError(
-                f"velocity.noise_reference_width_px must be > 0 px (or absent), got "
-                f"{self.noise_reference_width_px}"
-            )
+        _check_optional_positive(
+            "velocity", "noise_reference_width_px", self.noise_reference_width_px, "px"
+        )
         if not (math.isfinite(self.adaptation_frames) and self.adaptation_frames >= 1):
             raise ConfigError(
                 f"velocity.adaptation_frames must be >= 1, got {self.adaptation_frames}"
             )
-        if not (math.isfinite(self.depth_rate_sigma_min_m) and self.depth_rate_sigma_min_m > 0):
-            raise ConfigError(
-                f"velocity.depth_rate_sigma_min_m must be > 0 m, got {self.depth_rate_sigma_min_m}"
-            )
-        if self.exact_flow_spread_px is not None and not (
-            math.isfinite(self.exact_flow_spread_px) and self.exact_flow_spread_px > 0
-        ):
-            raise ConfigError(
-                "velocity.exact_flow_spread_px must be > 0 px (or absent: off), got "
-                f"{self.exact_flow_spread_px}"
-            )
-        if not (math.isfinite(self.depth_rate_inlier_sigmas) and self.depth_rate_inlier_sigmas > 0):
-            raise ConfigError(
-                "velocity.depth_rate_inlier_sigmas must be > 0, got "
-                f"{self.depth_rate_inlier_sigmas}"
-            )
-        if self.occluder_depth_jump_m is not None and not (
-            math.isfinite(self.occluder_depth_jump_m) and self.occluder_depth_jump_m > 0
-        ):
-            raise ConfigError(
-                'velocity.occluder_depth_jump_m must be > 0 m (or "none": off), got '
-                f"{self.occluder_depth_jump_m}"
-            )
+        _check_positive("velocity", "depth_rate_sigma_min_m", (self.depth_rate_sigma_min_m,))
+        _check_optional_positive(
+            "velocity", "exact_flow_spread_px", self.exact_flow_spread_px, "px"
+        )
+        _check_positive("velocity", "depth_rate_inlier_sigmas", (self.depth_rate_inlier_sigmas,))
+        _check_optional_positive(
+            "velocity", "occluder_depth_jump_m", self.occluder_depth_jump_m, "m"
+        )
         if not 0.0 < self.occluder_probability < 1.0:
             raise ConfigError(
                 f"velocity.occluder_probability must be in (0, 1), got {self.occluder_probability}"
