@@ -672,8 +672,6 @@ class VelocityKF:
             residual = y - J @ (x_prior + first[0])
             spread = _MAD_TO_SIGMA * np.median(np.abs(residual), axis=0)
             R = np.maximum(R, spread**2)
-            if cfg.exact_flow_spread_px is not None:
-                R = R * self._exact_flow_ratio(measurement, lik, x_prior, R)
         return innovation, lik, R, first
 
     def _exact_flow_ratio(
@@ -723,11 +721,15 @@ class VelocityKF:
         Returns:
             ``(J (M, 6), W (M,), innovation (M,), R (2,) [px^2])``: the flow's two rows per
             pixel (``dt * J`` [px per (m/s), px per (rad/s)], weights ``lik / R`` [1/px^2],
-            innovations [px]; :meth:`_robust_weights`) followed by the depth-change rows
-            ([m per (m/s), m per (rad/s)], [1/m^2], [m]; :func:`_depth_rate_weights`), and the
-            flow noise.
+            innovations [px]; :meth:`_robust_weights`, R times :meth:`_exact_flow_ratio`)
+            followed by the depth-change rows ([m per (m/s), m per (rad/s)], [1/m^2], [m];
+            :func:`_depth_rate_weights`), and the flow noise.
         """
         innovation, lik, R, _ = self._robust_weights(measurement, x_prior, P_prior)
+        cfg = self._config
+        if cfg.adapt_flow_noise and cfg.exact_flow_spread_px is not None:
+            # here, not in _robust_weights: relinearized() uses only its update, not R
+            R = R * self._exact_flow_ratio(measurement, lik, x_prior, R)
         J = measurement.J.reshape(-1, 6)
         W = (lik[:, None] / R[None, :]).reshape(-1)
         nu = innovation.reshape(-1)
