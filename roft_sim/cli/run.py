@@ -67,8 +67,9 @@ def add_input_arguments(parser: argparse.ArgumentParser, *, sweep: bool = False)
         default="auto",
         metavar="SPEC",
         help="flow source: gt, gt+noise, dis[:preset], bm (block matching, NVOF's method), "
-        "nvof-like:<inner> (e.g. nvof-like:bm), stored:<set>, none, "
-        "or auto (default: the stored nvof_1_slow set, else another stored set, else dis)",
+        "nvof-like:<inner> (e.g. nvof-like:bm), stored:<set>, nvof-hw (real NVIDIA hardware "
+        "flow; needs an NVIDIA GPU), none, or auto (default: the stored nvof_1_slow set, else "
+        "another stored set, else dis)",
     )
     parser.add_argument(
         "--poses",

@@ -18,6 +18,10 @@ spec                   source
 ``nvof-like:<inner>``  :class:`NvofLikeFlowSource`: any source as one vector per 4x4 block (its
                        medoid), in NVOF's S10.5 int16, like the reference ``nvof_1_slow`` set
 ``stored:<set>``       :class:`StoredFlowSource`: the sequence's stored flow set (stride 1 only)
+``nvof-hw[:<level>]``  :class:`~roft_sim.sensors.nvof_hardware.NvofHardwareFlowSource`: real NVIDIA
+                       hardware flow (NVOF API 1.0, the reference dumper's settings; needs an
+                       NVIDIA GPU and driver); ``:<level>`` = ``slow`` (default), ``medium``,
+                       ``fast``
 =====================  ============================================================================
 
 Stochastic sources are deterministic per ``(seed, from_k, to_k)``: each call draws from its own
@@ -76,6 +80,7 @@ FLOW_SOURCE_SPECS = (
     "bm[:<window_px>]",
     "nvof-like:<inner>",
     "stored:<set>",
+    "nvof-hw[:<perf level>]",
 )
 """The spec forms :func:`make_flow_source` understands."""
 
@@ -620,7 +625,8 @@ def make_flow_source(spec: str, *, seed: int) -> FlowSource:
 
     Args:
         spec: ``gt``, ``gt+noise``, ``gt+noise:<sigma_px>``, ``dis``, ``dis:<preset>``,
-            ``bm``, ``bm:<window_px>``, ``nvof-like:<inner spec>`` or ``stored:<set>``.
+            ``bm``, ``bm:<window_px>``, ``nvof-like:<inner spec>``, ``stored:<set>``,
+            ``nvof-hw`` or ``nvof-hw:<perf level>`` (built without touching the GPU).
         seed: seed of stochastic sources (each frame pair draws from
             ``SeedSequence([seed, from_k, to_k])``).
 
@@ -664,6 +670,10 @@ def make_flow_source(spec: str, *, seed: int) -> FlowSource:
         return NvofLikeFlowSource(make_flow_source(arg, seed=seed))
     if kind == "stored" and arg:
         return StoredFlowSource(arg)
+    if kind == "nvof-hw":
+        from roft_sim.sensors.nvof_hardware import NvofHardwareFlowSource  # it imports this module
+
+        return NvofHardwareFlowSource(arg or "slow")
     hint = ""
     if kind == "nvof-like":
         hint = " ('nvof-like' needs an inner source, e.g. 'nvof-like:dis' or 'nvof-like:gt')"
