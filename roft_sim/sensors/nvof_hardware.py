@@ -1,12 +1,12 @@
 """Real NVIDIA hardware optical flow (NVOFA) through the driver's NVOF API 1.0.
 
 The flow the reference ROFT reads on Fast-YCB (``nvof_1_slow``) was computed by NVIDIA's optical
-flow accelerator with the reference's dumper (``roft_reference.md`` section 10): NVOF API 1.0,
-performance level SLOW, a 4x4 output grid, temporal hints on, input = the grey frame ``k - 1``,
-reference = the grey frame ``k``, S10.5 int16 vectors. :class:`NvofHardwareFlowSource` runs the
-same engine with the same settings on a sequence's rgb images, so a simulated dataset can be read
-with real hardware flow wherever an NVIDIA GPU (Turing or newer) and its driver are present
-(flow spec ``nvof-hw``; docs/sensors.md, "Real hardware flow"). The GPU's generation matters: the
+flow accelerator with the reference's dumper (``roft_reference.md`` section 10.1): NVOF API
+1.0, performance level SLOW, a 4x4 output grid, temporal hints on, input = the grey frame
+``k - 1``, reference = the grey frame ``k``, S10.5 int16 vectors. :class:`NvofHardwareFlowSource`
+runs the same engine with the same settings on a sequence's rgb images, so a simulated dataset
+can be read with real hardware flow wherever an NVIDIA GPU (Turing or newer) and its driver are
+present (flow spec ``nvof-hw``; docs/sensors.md, ``nvof-hw``). The GPU's generation matters: the
 engine changed after Turing (NVIDIA states 10-15 % better quality on Ada than on Ampere), and
 ROFT's Fast-YCB flow came from a Turing engine.
 
