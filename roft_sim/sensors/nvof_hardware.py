@@ -220,7 +220,11 @@ class _CudaDriver:
             lib.cuDevicePrimaryCtxRetain(ctypes.byref(self.context), device),
             "cuDevicePrimaryCtxRetain",
         )
-        self._check(lib.cuCtxSetCurrent(self.context), "cuCtxSetCurrent")
+        try:
+            self._check(lib.cuCtxSetCurrent(self.context), "cuCtxSetCurrent")
+        except NvofHardwareError:
+            self.close()
+            raise
 
     def _check(self, status: int, call: str) -> None:
         if status != 0:

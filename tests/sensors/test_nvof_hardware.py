@@ -82,6 +82,39 @@ def test_without_the_driver_library_the_error_says_what_is_missing_and_what_to_u
     assert isinstance(hw.NvofHardwareError("x"), ConfigError)  # exit code 2 in the CLI
 
 
+class _FakeCudaLibrary:
+    """The CUDA driver calls ``_CudaDriver`` makes; ``cuCtxSetCurrent`` fails."""
+
+    def __init__(self) -> None:
+        self.released = 0
+
+    def cuInit(self, flags: int) -> int:
+        return 0
+
+    def cuDeviceGet(self, device: object, ordinal: int) -> int:
+        return 0
+
+    def cuDevicePrimaryCtxRetain(self, context: object, device: object) -> int:
+        return 0
+
+    def cuCtxSetCurrent(self, context: object) -> int:
+        return 201  # CUDA_ERROR_INVALID_CONTEXT
+
+    def cuGetErrorString(self, status: int, text: object) -> int:
+        return 0
+
+    def cuDevicePrimaryCtxRelease_v2(self, device: object) -> int:
+        self.released += 1
+        return 0
+
+
+def test_a_failing_cuda_call_is_reported_and_the_retained_context_released() -> None:
+    lib = _FakeCudaLibrary()
+    with pytest.raises(hw.NvofHardwareError, match="cuCtxSetCurrent failed: error 201"):
+        hw._CudaDriver(lib, 0)
+    assert lib.released == 1
+
+
 class _FakeEngine:
     """Returns S10.5 vectors ``(32 * k + 3, -16)`` for the k-th call; records the calls."""
 
