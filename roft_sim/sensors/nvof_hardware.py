@@ -33,7 +33,7 @@ from numpy.typing import NDArray
 from roft_sim.datasets.base import Sequence
 from roft_sim.errors import ConfigError
 from roft_sim.records import FlowField
-from roft_sim.sensors.flow_sources import _check_frames
+from roft_sim.sensors.flow_sources import _check_frames, flow_px_from_s10_5
 
 __all__ = [
     "NVOF_LIBRARY",
@@ -63,7 +63,6 @@ _USAGE_INPUT, _USAGE_OUTPUT = 1, 2
 _FORMAT_GRAYSCALE8, _FORMAT_SHORT2 = 1, 5
 _CUDA_BUFFER_DEVICE_PTR = 2
 _MEMORY_HOST, _MEMORY_DEVICE = 1, 2
-_S10_5_SCALE = 32.0
 
 U8 = NDArray[np.uint8]
 I16 = NDArray[np.int16]
@@ -464,7 +463,7 @@ class NvofHardwareSession:
         hints = self._last == (name, from_k)
         q = self._engine.flow_s10_5(previous, current, temporal_hints=hints)
         self._last = (name, to_k)
-        return (q.astype(np.float32) / np.float32(_S10_5_SCALE)).astype(np.float32)
+        return flow_px_from_s10_5(q)
 
     def close(self) -> None:
         self._engine.close()
