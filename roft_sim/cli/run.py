@@ -67,7 +67,8 @@ def add_input_arguments(parser: argparse.ArgumentParser, *, sweep: bool = False)
         default="auto",
         metavar="SPEC",
         help="flow source: gt, gt+noise, dis[:preset], bm (block matching, NVOF's method), "
-        "nvof-like:<inner> (e.g. nvof-like:bm), stored:<set>, nvof-hw (real NVIDIA hardware "
+        "nvof-like:<inner> (e.g. nvof-like:bm), nvof-model (exact flow with the error model "
+        "fitted to NVIDIA hardware flow), stored:<set>, nvof-hw (real NVIDIA hardware "
         "flow; needs an NVIDIA GPU), none, or auto (default: the stored nvof_1_slow set, else "
         "another stored set, else dis)",
     )

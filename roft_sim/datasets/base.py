@@ -24,10 +24,13 @@ F32 = NDArray[np.float32]
 U8 = NDArray[np.uint8]
 Bool = NDArray[np.bool_]
 
-__all__ = ["Sequence", "DetectorPoses", "InMemorySequence", "GT_MASK_SET"]
+__all__ = ["Sequence", "DetectorPoses", "InMemorySequence", "GT_MASK_SET", "GT_FLOW_SET"]
 
 GT_MASK_SET = "gt"
 """Name of the ground-truth visible-mask set in every format."""
+
+GT_FLOW_SET = "gt"
+"""Name of the exact-flow set a generated dataset holds (``[[networks.flow_sets]]`` default)."""
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

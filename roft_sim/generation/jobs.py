@@ -226,12 +226,15 @@ def _check_finished_matches(path: Path, metadata: Mapping[str, Any]) -> None:
 
 
 def _warn_about_grid_width(scenario: Scenario) -> None:
-    """Warns when an ``nvof-like`` set's 4x4 grid does not divide the image width: our readers
-    know the grid is 4 px, but the reference ROFT derives it as ``image_width / flow_cols`` in
-    integer arithmetic (roft_reference.md section 8.4) and would sample the flow wrongly."""
+    """Warns when an ``nvof-like`` or ``nvof-model`` set's 4x4 grid does not divide the image
+    width: our readers know the grid is 4 px, but the reference ROFT derives it as
+    ``image_width / flow_cols`` in integer arithmetic (roft_reference.md section 8.4) and would
+    sample the flow wrongly."""
     width = scenario.intrinsics.width_px
     grid_sets = [
-        f.set_name for f in scenario.networks.flow_sets if f.source.startswith("nvof-like")
+        f.set_name
+        for f in scenario.networks.flow_sets
+        if f.source.startswith(("nvof-like", "nvof-model"))
     ]
     g = NVOF_GRID_PX
     if grid_sets and width % g:

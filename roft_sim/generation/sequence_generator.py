@@ -12,8 +12,10 @@ Per frame ``k`` (docs/generate.md, "The pipeline"):
 3. Flow sets: ``F_k`` from frame k-1 to k. ``gt`` is :func:`roft_sim.render.ground_truth_flow`
    (every rigid body, the hand included, moves with its own motion); ``gt+noise`` adds
    :func:`~roft_sim.sensors.flow_sources.apply_flow_noise` with the generator
-   ``frame_rng(seed_of_set, k-1, k)``; ``dis`` and ``nvof-like`` are the sensors' own sources
-   run on the two rendered frames.
+   ``frame_rng(seed_of_set, k-1, k)``; ``nvof-model`` applies
+   :func:`~roft_sim.sensors.nvof_error_model.nvof_error_model` (the error model fitted to real
+   NVIDIA hardware flow) to that same exact flow with the same generator; ``dis`` and
+   ``nvof-like`` are the sensors' own sources run on the two rendered frames.
 4. Pose estimator: :func:`~roft_sim.sensors.pose_estimator.sample_pose_detections` over the
    WHOLE ground-truth track (computed from the trajectory without rendering, see
    :func:`ground_truth_track`) with the stream ``scenario.rng("pose_estimator")``; its draws
@@ -52,6 +54,7 @@ from roft_sim.sensors.flow_sources import (
     frame_rng,
 )
 from roft_sim.sensors.networks import FlowSetConfig, FlowSourceSpec
+from roft_sim.sensors.nvof_error_model import NvofErrorModelFlowSource
 from roft_sim.sensors.pose_estimator import sample_pose_detections
 from roft_sim.sensors.segmenter import simulate_mask
 
@@ -194,6 +197,10 @@ def _flow_source(spec: FlowSourceSpec, config: FlowSetConfig, seed: int) -> Flow
     if spec.kind == "dis":
         assert spec.dis_preset is not None
         return _Memoised(DisFlowSource(spec.dis_preset), f"dis:{spec.dis_preset}")
+    if spec.kind == "nvof-model":
+        return NvofErrorModelFlowSource(
+            config.nvof_model, seed, exact=cast(FlowSource, _RenderedGroundTruthFlow())
+        )
     if spec.kind == "bm":
         assert spec.bm_window_px is not None
         matcher = BlockMatchingConfig(window_px=spec.bm_window_px)

@@ -17,6 +17,9 @@ spec                   source
                        ``:<window_px>`` sets the matching window (default 8)
 ``nvof-like:<inner>``  :class:`NvofLikeFlowSource`: any source as one vector per 4x4 block (its
                        medoid), in NVOF's S10.5 int16, like the reference ``nvof_1_slow`` set
+``nvof-model``         :class:`~roft_sim.sensors.nvof_error_model.NvofErrorModelFlowSource`: the
+                       exact flow with an error model fitted to real NVIDIA hardware flow
+                       (boundary spill, sub-pixel noise, large-displacement failures), 4x4, S10.5
 ``stored:<set>``       :class:`StoredFlowSource`: the sequence's stored flow set (stride 1 only)
 ``nvof-hw[:<level>]``  :class:`~roft_sim.sensors.nvof_hardware.NvofHardwareFlowSource`: real NVIDIA
                        hardware flow (NVOF API 1.0, the reference dumper's settings; needs an
@@ -79,6 +82,7 @@ FLOW_SOURCE_SPECS = (
     "dis[:<preset>]",
     "bm[:<window_px>]",
     "nvof-like:<inner>",
+    "nvof-model",
     "stored:<set>",
     "nvof-hw[:<perf level>]",
 )
@@ -625,7 +629,8 @@ def make_flow_source(spec: str, *, seed: int) -> FlowSource:
 
     Args:
         spec: ``gt``, ``gt+noise``, ``gt+noise:<sigma_px>``, ``dis``, ``dis:<preset>``,
-            ``bm``, ``bm:<window_px>``, ``nvof-like:<inner spec>``, ``stored:<set>``,
+            ``bm``, ``bm:<window_px>``, ``nvof-like:<inner spec>``, ``nvof-model``,
+            ``stored:<set>``,
             ``nvof-hw`` or ``nvof-hw:<perf level>`` (built without touching the GPU).
         seed: seed of stochastic sources (each frame pair draws from
             ``SeedSequence([seed, from_k, to_k])``).
@@ -668,6 +673,10 @@ def make_flow_source(spec: str, *, seed: int) -> FlowSource:
         return BlockMatchingFlowSource(BlockMatchingConfig(window_px=int(arg)), seed=seed)
     if kind == "nvof-like" and arg:
         return NvofLikeFlowSource(make_flow_source(arg, seed=seed))
+    if kind == "nvof-model" and not arg:
+        from roft_sim.sensors.nvof_error_model import NvofErrorModelFlowSource  # imports this
+
+        return NvofErrorModelFlowSource(seed=seed)
     if kind == "stored" and arg:
         return StoredFlowSource(arg)
     if kind == "nvof-hw":

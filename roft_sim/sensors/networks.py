@@ -26,10 +26,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
 
+from roft_sim.datasets.base import GT_FLOW_SET
 from roft_sim.datasets.frames import FLOW_ENCODINGS, check_set_name
 from roft_sim.errors import ConfigError
 from roft_sim.sensors.block_matching import BlockMatchingConfig
 from roft_sim.sensors.flow_sources import DIS_PRESETS, FlowNoiseConfig
+from roft_sim.sensors.nvof_error_model import NvofErrorModelConfig
 from roft_sim.sensors.pose_estimator import FAST_YCB_DOPE, PoseEstimatorConfig
 from roft_sim.sensors.segmenter import SegmenterConfig
 
@@ -50,6 +52,7 @@ GENERATION_FLOW_SOURCES = (
     "dis[:<preset>]",
     "bm[:<window_px>]",
     "nvof-like:<inner>",
+    "nvof-model",
 )
 """The flow sources a generated flow set can use (``<inner>`` is any of the first four)."""
 
@@ -67,7 +70,7 @@ def _check_name(kind: str, name: str, *, reserved: tuple[str, ...]) -> None:
 class FlowSourceSpec:
     """A parsed flow-source string (see :func:`parse_generation_flow_source`)."""
 
-    kind: Literal["gt", "gt+noise", "dis", "bm", "nvof-like"]
+    kind: Literal["gt", "gt+noise", "dis", "bm", "nvof-like", "nvof-model"]
     """The source."""
     dis_preset: str | None = None
     """OpenCV DIS preset (``kind == "dis"``)."""
@@ -84,13 +87,13 @@ class FlowSourceSpec:
 
 def parse_generation_flow_source(spec: str) -> FlowSourceSpec:
     """Parses a flow-set source: ``gt``, ``gt+noise``, ``dis``, ``dis:<preset>``, ``bm``,
-    ``bm:<window_px>`` or ``nvof-like:<one of those>``.
+    ``bm:<window_px>``, ``nvof-like:<one of those>`` or ``nvof-model``.
 
     Raises:
         ConfigError: anything else (the message lists the forms).
     """
     kind, _, arg = spec.strip().partition(":")
-    if kind in ("gt", "gt+noise") and not arg:
+    if kind in ("gt", "gt+noise", "nvof-model") and not arg:
         return FlowSourceSpec(kind)  # type: ignore[arg-type]
     if kind == "dis":
         preset = arg or "medium"
@@ -111,8 +114,11 @@ def parse_generation_flow_source(spec: str) -> FlowSourceSpec:
         return FlowSourceSpec("bm", bm_window_px=window_px)
     if kind == "nvof-like" and arg:
         inner = parse_generation_flow_source(arg)
-        if inner.kind == "nvof-like":
-            raise ConfigError(f"flow source {spec!r}: nvof-like cannot wrap nvof-like")
+        if inner.kind in ("nvof-like", "nvof-model"):
+            raise ConfigError(
+                f"flow source {spec!r}: nvof-like cannot wrap {inner.kind} (already on NVOF's "
+                "4x4 grid)"
+            )
         return FlowSourceSpec("nvof-like", inner=inner)
     raise ConfigError(
         f"unknown flow source {spec!r}; expected one of {', '.join(GENERATION_FLOW_SOURCES)}, "
@@ -187,13 +193,17 @@ class FlowSetConfig:
     docs/generate.md, "Round 6"),
     ``bm[:<window_px>]`` (block matching on the rendered rgb, one vector per 4x4 block, default
     window 8 px; ``nvof-like:bm:16`` is the flow closest to Fast-YCB's real NVOF picture,
-    docs/fidelity.md, at about 45 times DIS medium's time) or ``nvof-like:<one of those>``
-    (reduced to NVOF 1.0's one vector per 4x4 block, rounded to 1/4 px)."""
+    docs/fidelity.md, at about 45 times DIS medium's time), ``nvof-like:<one of those>``
+    (reduced to NVOF 1.0's one vector per 4x4 block, rounded to 1/4 px) or ``nvof-model`` (the
+    exact flow with the error model fitted to real NVIDIA hardware flow, ``nvof_model``)."""
     encoding: Literal["float32", "s10.5"] = "float32"
     """On-disk encoding: ``float32`` (exact) or ``s10.5`` (int16, 1/32 px steps, |F| < 1024 px,
     as NVOF writes; lossy for sources finer than 1/32 px)."""
     noise: FlowNoiseConfig = field(default_factory=FlowNoiseConfig)
     """End-point-error model of a ``gt+noise`` source (``[networks.flow_sets.noise]``)."""
+    nvof_model: NvofErrorModelConfig = field(default_factory=NvofErrorModelConfig)
+    """Error model of an ``nvof-model`` source (``[networks.flow_sets.nvof_model]``; defaults
+    fitted to real hardware flow, :mod:`roft_sim.sensors.nvof_error_model`)."""
 
     def __post_init__(self) -> None:
         _check_name("flow", self.set_name, reserved=())
@@ -211,7 +221,7 @@ class FlowSetConfig:
 
 
 DEFAULT_FLOW_SETS: tuple[FlowSetConfig, ...] = (
-    FlowSetConfig(set_name="gt", source="gt", encoding="float32"),
+    FlowSetConfig(set_name=GT_FLOW_SET, source="gt", encoding="float32"),
     FlowSetConfig(set_name="nvof_1_slow", source="nvof-like:dis:medium", encoding="s10.5"),
 )
 """``gt``: exact float flow; ``nvof_1_slow``: an NVOF-1.0-like estimate (DIS, 4x4, S10.5)."""

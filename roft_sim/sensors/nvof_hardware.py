@@ -201,7 +201,8 @@ def _load(name: str, loader: Callable[[str], Any]) -> Any:
         raise NvofHardwareError(
             f"the 'nvof-hw' flow needs an NVIDIA GPU (Turing or newer) and its driver's "
             f"{name}, which could not be loaded ({e}); on a machine without one, use the "
-            "simulated NVOF-like flow ('nvof-like:dis', the generated 'nvof_1_slow' set)"
+            "simulated NVOF-like flow ('nvof-model', fitted to this engine's errors, or "
+            "'nvof-like:dis')"
         ) from e
 
 
