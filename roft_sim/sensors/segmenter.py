@@ -31,6 +31,7 @@ with the camera resolution. ``min_visible_px`` is in full-resolution pixels.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 import cv2
 import numpy as np
@@ -180,13 +181,34 @@ def _noisy_boundary(mask: Bool, field: F32, offset_px: float, noise_px: float) -
 
 
 def _smooth_field(rng: np.random.Generator, shape: tuple[int, int], sigma_px: float) -> F32:
-    white = rng.standard_normal(shape).astype(np.float32)
+    """(h, w) float32 Gaussian random field of unit std, correlated by a Gaussian of
+    ``sigma_px`` (white noise below 0.3 px).
+
+    White noise blurred by ``sigma_px`` and renormalised, drawn on a grid ``step`` = floor(
+    ``sigma_px`` / 2) px coarse (so at least two samples per correlation length: the blur's
+    correlation, ``exp(-d^2 / (4 sigma^2))``, then changes by under 7 % between samples) and
+    bilinearly upsampled: the field of the full-resolution draw in distribution (std and
+    correlation tested against it) for ``step^2`` fewer draws: 0.5 ms instead of 12 ms at
+    640x480 with the default 8 px (round 15; the masks' bytes changed with it)."""
+    h, w = shape
     if sigma_px < 0.3:
-        return white
-    ksize = 2 * int(np.ceil(3.0 * sigma_px)) + 1
-    k1 = cv2.getGaussianKernel(ksize, sigma_px, cv2.CV_64F)[:, 0]
-    blurred = cv2.GaussianBlur(white, (ksize, ksize), sigma_px, borderType=cv2.BORDER_REFLECT)
-    return blurred / np.float32(np.sum(k1**2))
+        return rng.standard_normal(shape).astype(np.float32)
+    step = max(1, int(sigma_px // 2))
+    hc, wc = -(-h // step) + 1, -(-w // step) + 1
+    white = rng.standard_normal((hc, wc)).astype(np.float32)
+    sigma = sigma_px / step
+    ksize = 2 * int(np.ceil(3.0 * sigma)) + 1
+    k1 = cv2.getGaussianKernel(ksize, sigma, cv2.CV_64F)[:, 0]
+    blurred = cv2.GaussianBlur(white, (ksize, ksize), sigma, borderType=cv2.BORDER_REFLECT)
+    coarse = blurred / np.float32(np.sum(k1**2))
+    if step == 1:
+        return coarse[:h, :w].copy()
+    # corner-aligned upsampling: coarse sample (i, j) lands on pixel (i step, j step)
+    rows = np.arange(h, dtype=np.float32) / step
+    cols = np.arange(w, dtype=np.float32) / step
+    map_x, map_y = np.meshgrid(cols, rows)
+    field = cv2.remap(coarse, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    return cast(F32, field)  # float32 in, float32 out
 
 
 def _mask_head(mask: Bool, grid_px: int) -> Bool:

@@ -217,3 +217,38 @@ def test_noisy_boundary_on_the_grown_box_equals_the_full_image_formula():
         rows, cols = np.flatnonzero(low.any(1)), np.flatnonzero(low.any(0))
         boxes += (rows[-1] - rows[0] + 40 < h) and (cols[-1] - cols[0] + 40 < w)
     assert boxes >= 10  # the box was smaller than the image in many trials
+
+
+def test_boundary_noise_field_has_the_full_resolution_draw_s_std_and_correlation() -> None:
+    """The coarse-grid field against the process it stands for: white noise blurred at full
+    resolution by sigma (correlation exp(-d^2 / (4 sigma^2)), unit std)."""
+    import cv2
+
+    from roft_sim.sensors.segmenter import _smooth_field
+
+    def full_resolution(rng: np.random.Generator, shape: tuple[int, int], sigma: float):
+        white = rng.standard_normal(shape).astype(np.float32)
+        k = 2 * int(np.ceil(3 * sigma)) + 1
+        k1 = cv2.getGaussianKernel(k, sigma, cv2.CV_64F)[:, 0]
+        blurred = cv2.GaussianBlur(white, (k, k), sigma, borderType=cv2.BORDER_REFLECT)
+        return blurred / np.float32(np.sum(k1**2))
+
+    def stats(fields: list[np.ndarray], sigma: float) -> np.ndarray:
+        lags = [1, int(sigma // 2), int(sigma), 2 * int(sigma)]
+        out = [np.mean([f.std() for f in fields])]
+        for d in lags:
+            out.append(
+                np.mean([np.corrcoef(f[:, :-d].ravel(), f[:, d:].ravel())[0, 1] for f in fields])
+            )
+            out.append(np.mean([np.corrcoef(f[:-d].ravel(), f[d:].ravel())[0, 1] for f in fields]))
+        return np.array(out)
+
+    for sigma in (3.0, 8.0):
+        new = [_smooth_field(np.random.default_rng(i), (240, 320), sigma) for i in range(12)]
+        old = [
+            full_resolution(np.random.default_rng(100 + i), (240, 320), sigma) for i in range(12)
+        ]
+        assert new[0].shape == (240, 320) and new[0].dtype == np.float32
+        np.testing.assert_allclose(stats(new, sigma), stats(old, sigma), atol=0.04)
+    white = _smooth_field(np.random.default_rng(0), (50, 60), 0.2)
+    assert white.shape == (50, 60) and abs(white.std() - 1) < 0.05
