@@ -11,9 +11,9 @@ dataset is consumed) and writes each as a named set:
   mask set ``mrcnn_ycbv_bop_pbr`` (``masks/mrcnn_ycbv_bop_pbr/<object>_<k>.png``; a miss has no
   file);
 - ``[[networks.flow_sets]]``: flow sets, each a name, a source and an on-disk encoding. Default:
-  ``gt`` (exact ground-truth motion field, float32, full resolution) and ``nvof_1_slow`` (OpenCV
-  DIS on the rendered images, reduced to NVOF 1.0's output: one vector per 4x4 block in S10.5
-  int16).
+  ``gt`` (exact ground-truth motion field, float32, full resolution) and ``nvof_1_slow`` (the
+  exact flow with an error model fitted to real NVIDIA hardware flow, in NVOF 1.0's output: one
+  vector per 4x4 block in S10.5 int16; :mod:`roft_sim.sensors.nvof_error_model`).
 
 The default set names are the reference's (``dope``, ``mrcnn_ycbv_bop_pbr``, ``nvof_1_slow``), so
 the reference ROFT scripts read a generated dataset unchanged; what produced each set is recorded
@@ -222,9 +222,11 @@ class FlowSetConfig:
 
 DEFAULT_FLOW_SETS: tuple[FlowSetConfig, ...] = (
     FlowSetConfig(set_name=GT_FLOW_SET, source="gt", encoding="float32"),
-    FlowSetConfig(set_name="nvof_1_slow", source="nvof-like:dis:medium", encoding="s10.5"),
+    FlowSetConfig(set_name="nvof_1_slow", source="nvof-model", encoding="s10.5"),
 )
-"""``gt``: exact float flow; ``nvof_1_slow``: an NVOF-1.0-like estimate (DIS, 4x4, S10.5)."""
+"""``gt``: exact float flow; ``nvof_1_slow``: an NVOF-1.0-like estimate (the exact flow with the
+error model fitted to real NVIDIA hardware flow, 4x4, S10.5; ``nvof-like:dis:medium`` before
+round 15)."""
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

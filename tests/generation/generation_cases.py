@@ -4,7 +4,8 @@
 - :func:`run_generate`: :func:`roft_sim.generation.generate_dataset` without a progress bar.
 - :func:`tree_hashes`: SHA-256 of every file under a folder (byte-identity checks).
 - :func:`render_oracle`: an independent in-process render of the same frames (SceneRenderer,
-  ground_truth_flow, OpenCV DIS through the sensors' NVOF-like source, the silhouette renderer).
+  ground_truth_flow, the NVOF error model applied to that flow with the set's seed, the
+  silhouette renderer).
 """
 
 from __future__ import annotations
@@ -52,19 +53,6 @@ def tree_hashes(root: Path) -> dict[str, str]:
     }
 
 
-class _RgbFrames:
-    """The part of the ``Sequence`` protocol OpenCV DIS reads."""
-
-    def __init__(self, name, intrinsics, rgbs):
-        self.name, self.intrinsics, self._rgb = name, intrinsics, rgbs
-
-    def __len__(self):
-        return len(self._rgb)
-
-    def rgb(self, k):
-        return self._rgb[k]
-
-
 @dataclass
 class OracleFrames:
     """What an independent in-process render gives for frames 0..N-1."""
@@ -75,16 +63,19 @@ class OracleFrames:
     """(H, W) bool full silhouettes (object alone), united with the visible mask."""
     gt_flows: list
     """FlowField F_k (None for k = 0)."""
-    nvof_dis_flows: list
-    """NVOF-like DIS medium FlowField F_k (None for k = 0)."""
+    nvof_flows: list
+    """The ``nvof_1_slow`` set's FlowField F_k (``nvof-model``; None for k = 0)."""
     model_mesh: object
     """The rendered object's mesh."""
 
 
 def render_oracle(scenario: Scenario) -> OracleFrames:
     """Renders every frame of ``scenario`` directly (see the module doc)."""
+    from roft_sim.generation.sequence_generator import flow_set_seed
+    from roft_sim.records import FlowField
     from roft_sim.render import MujocoDepthRenderer, SceneRenderer, ground_truth_flow
-    from roft_sim.sensors.flow_sources import DisFlowSource, NvofLikeFlowSource
+    from roft_sim.sensors.flow_sources import frame_rng
+    from roft_sim.sensors.nvof_error_model import NvofErrorModelConfig, nvof_error_model
 
     with SceneRenderer(scenario) as r:
         frames = [r.render_frame(k) for k in range(scenario.n_frames)]
@@ -98,14 +89,19 @@ def render_oracle(scenario: Scenario) -> OracleFrames:
         ground_truth_flow(a, b, scenario.intrinsics)
         for a, b in zip(frames[:-1], frames[1:], strict=True)
     ]
-    rgbs = _RgbFrames(scenario.name, scenario.intrinsics, [f.rgb for f in frames])
-    nvof = NvofLikeFlowSource(DisFlowSource("medium"))
-    nvof_flows = [None] + [nvof.flow(rgbs, k - 1, k) for k in range(1, len(frames))]
+    h, w = scenario.intrinsics.shape
+    seed = flow_set_seed(scenario, "nvof_1_slow")
+    nvof_flows: list[FlowField | None] = [None]
+    for k in range(1, len(frames)):
+        flow, valid = nvof_error_model(
+            gt_flows[k].dense(h, w), NvofErrorModelConfig(), frame_rng(seed, k - 1, k)
+        )
+        nvof_flows.append(FlowField(flow_px=flow, from_k=k - 1, to_k=k, grid_px=4, valid=valid))
     return OracleFrames(
         frames=frames,
         full_masks=full,
         gt_flows=gt_flows,
-        nvof_dis_flows=nvof_flows,
+        nvof_flows=nvof_flows,
         model_mesh=mesh,
     )
 

@@ -71,7 +71,7 @@ def test_images_depth_masks_and_flows_are_bit_exact(scenario, oracle, generated)
         np.testing.assert_array_equal(gt.flow_px, want.flow_px, err_msg=f"gt flow {k}")
         np.testing.assert_array_equal(gt.valid, want.valid, err_msg=f"gt flow validity {k}")
         nvof = seq.flow(k, "nvof_1_slow")
-        want = oracle.nvof_dis_flows[k]
+        want = oracle.nvof_flows[k]
         assert nvof.grid_px == 4
         np.testing.assert_array_equal(nvof.flow_px, want.flow_px, err_msg=f"nvof flow {k}")
     # The scene really exercises the pipeline: background flow (moving camera), hand occlusion.
@@ -150,7 +150,7 @@ def test_metadata_records_scenario_seed_and_sets(scenario, generated):
     assert meta["scenario"]["name"] == scenario.name
     assert meta["scenario"]["camera"]["width_px"] == 160
     assert meta["generator"]["flow_sets"]["nvof_1_slow"] == {
-        "source": "nvof-like:dis:medium",
+        "source": "nvof-model",
         "encoding": "s10.5",
     }
     assert meta["sets"]["flow"]["nvof_1_slow"] == {"encoding": "s10.5", "grid_px": 4}

@@ -64,7 +64,7 @@ def test_defaults_reproduce_the_reference_fast_ycb_set_names():
     assert n.mask.enabled and n.mask.set_name == "mrcnn_ycbv_bop_pbr"
     assert [(f.set_name, f.source, f.encoding) for f in n.flow_sets] == [
         ("gt", "gt", "float32"),
-        ("nvof_1_slow", "nvof-like:dis:medium", "s10.5"),
+        ("nvof_1_slow", "nvof-model", "s10.5"),
     ]
     assert n.flow_encodings == {"gt": "float32", "nvof_1_slow": "s10.5"}
     assert n.pose.estimator == PoseEstimatorConfig()
