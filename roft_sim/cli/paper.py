@@ -67,7 +67,8 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         default="auto",
         metavar="SPEC",
         help="flow source of the rows that use flow (default auto: the stored nvof_1_slow set, "
-        "our NVOF-like DIS flow; or dis, gt, nvof-hw on an NVIDIA GPU, ...)",
+        "our hardware-fitted NVOF-like flow; or nvof-like:dis, dis, gt, nvof-hw on an NVIDIA "
+        "GPU, ...)",
     )
     parser.add_argument(
         "--rows",

@@ -71,6 +71,7 @@ __all__ = [
     "NVOF_PRECISION_PX",
     "s10_5_from_flow_px",
     "flow_px_from_s10_5",
+    "check_s10_5_precision",
     "make_flow_source",
     "frame_rng",
     "FLOW_SOURCE_SPECS",
@@ -413,6 +414,17 @@ def s10_5_from_flow_px(flow_px: NDArray[np.floating]) -> NDArray[np.int16]:
     return np.clip(q, np.iinfo(np.int16).min, np.iinfo(np.int16).max).astype(np.int16)
 
 
+def check_s10_5_precision(name: str, precision_px: float) -> None:
+    """ConfigError unless ``precision_px`` is a whole multiple of S10.5's 1/32 px step, >= 1/32;
+    ``name`` is the parameter's name for the message."""
+    steps = precision_px * _S10_5_SCALE
+    if not (np.isfinite(steps) and steps >= 1 and abs(steps - round(steps)) < 1e-9):
+        raise ConfigError(
+            f"{name} must be a whole multiple of 1/32 px (S10.5), >= 1/32, got {precision_px}; "
+            "NVOF 1.0 gives 0.25"
+        )
+
+
 def flow_px_from_s10_5(q: NDArray[np.int16]) -> F32:
     """Pixels from NVOF S10.5 fixed point: ``q / 32`` as float32 (exact)."""
     return (np.asarray(q, dtype=np.float32) / np.float32(_S10_5_SCALE)).astype(np.float32)
@@ -524,12 +536,7 @@ class NvofLikeFlowSource:
     ) -> None:
         if grid_px < 1:
             raise ConfigError(f"grid_px must be >= 1, got {grid_px}")
-        steps = precision_px * 32
-        if not (np.isfinite(steps) and steps >= 1 and abs(steps - round(steps)) < 1e-9):
-            raise ConfigError(
-                f"precision_px must be a whole multiple of 1/32 px (S10.5), >= 1/32, got "
-                f"{precision_px}; NVOF 1.0 gives 0.25"
-            )
+        check_s10_5_precision("precision_px", precision_px)
         self.inner = inner
         self.grid_px = int(grid_px)
         self.precision_px = float(precision_px)

@@ -53,6 +53,7 @@ from roft_sim.sensors.flow_sources import (
     FlowSource,
     GroundTruthFlowSource,
     StoredFlowSource,
+    check_s10_5_precision,
     flow_px_from_s10_5,
     frame_rng,
     s10_5_from_flow_px,
@@ -106,12 +107,7 @@ class NvofErrorModelConfig:
             )
         if self.grid_px < 1:
             raise ConfigError(f"NvofErrorModelConfig.grid_px must be >= 1, got {self.grid_px}")
-        steps = self.precision_px * 32
-        if not (np.isfinite(steps) and steps >= 1 and abs(steps - round(steps)) < 1e-9):
-            raise ConfigError(
-                f"NvofErrorModelConfig.precision_px must be a whole multiple of 1/32 px (S10.5), "
-                f">= 1/32, got {self.precision_px}; NVOF 1.0 gives 0.25"
-            )
+        check_s10_5_precision("NvofErrorModelConfig.precision_px", self.precision_px)
 
 
 def nvof_error_model(
