@@ -53,6 +53,7 @@ from roft_sim.sensors.flow_sources import (
     FlowSource,
     GroundTruthFlowSource,
     StoredFlowSource,
+    _finite_at_least,
     check_s10_5_precision,
     flow_px_from_s10_5,
     frame_rng,
@@ -96,11 +97,7 @@ class NvofErrorModelConfig:
             "failure_rate_per_16px",
             "failure_min_radius_px",
         ):
-            value = getattr(self, name)
-            if not (np.isfinite(value) and value >= 0):
-                raise ConfigError(
-                    f"NvofErrorModelConfig.{name} must be a finite number >= 0, got {value!r}"
-                )
+            _finite_at_least("NvofErrorModelConfig", name, getattr(self, name), 0.0)
         if self.static_speed_px <= 0:
             raise ConfigError(
                 f"NvofErrorModelConfig.static_speed_px must be > 0, got {self.static_speed_px}"
@@ -172,8 +169,8 @@ def nvof_error_model(
     radius = np.maximum(config.failure_min_radius_px, speed) * np.sqrt(rng.random((hg, wg)))
     angle = rng.uniform(0.0, 2.0 * np.pi, (hg, wg))
     jump = np.stack([radius * np.cos(angle), radius * np.sin(angle)], axis=2)
+    # invalid blocks stay 0: their speed is 0, so no noise and no failure reaches them
     noisy = np.where(fails[..., None], block + jump, noisy)
-    noisy[~valid] = 0.0
     rounded = np.round(noisy / config.precision_px) * config.precision_px
     return flow_px_from_s10_5(s10_5_from_flow_px(rounded)), valid
 
