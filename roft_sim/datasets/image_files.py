@@ -4,11 +4,12 @@ RGB is ``(H, W, 3)`` uint8 in RGB order in memory; OpenCV's BGR order appears on
 ``(H, W)`` bool in memory and single-channel 8-bit 0/255 on disk; reading follows ROFT's
 binarisation (any value > 1 is foreground), so detector masks with soft, resized edges read as
 ROFT reads them. Encoding is deterministic (a given zlib level, no time stamps): the same image
-and level give the same bytes. The level trades time for size (docs/formats.md, "PNG
-compression"): the default, 1, encodes a 640x480 rendered frame about 1.6x faster than level 3
-for files about 4 % larger. At level 1 RGB rows use the Up filter and zlib's run-length
-strategy; masks use no filter and the run-length strategy at every level (faster; smaller
-masks); 16-bit images keep libpng's defaults.
+and level give the same bytes on a given processor. The level trades time for size
+(docs/formats.md, "PNG compression"): levels 1-3 (1, the default) write the PNG here with one
+fixed row filter per kind of image (RGB: Up; masks: none; 16-bit: Sub) and compress it with
+ISA-L's deflate (``isal``), about 4x faster than libpng with zlib at equal size; level 0
+(stored) and levels 4-9 go through OpenCV's libpng and zlib (adaptive row filters for RGB and
+16-bit images: slower, smaller).
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from typing import cast
 
 import cv2
 import numpy as np
+from isal import isal_zlib
 from numpy.typing import NDArray
 
 from roft_sim.errors import ConfigError, DatasetFormatError, located
@@ -65,17 +67,11 @@ def read_file_bytes(path: str | Path, what: str) -> bytes:
         raise DatasetFormatError(f"{what} path {located(path)} is a folder, not a file") from None
 
 
-_RGB_PNG_PARAMS = (
-    cv2.IMWRITE_PNG_FILTER,
-    cv2.IMWRITE_PNG_FILTER_UP,
-    cv2.IMWRITE_PNG_STRATEGY,
-    cv2.IMWRITE_PNG_STRATEGY_RLE,
-)
-"""At level 1 (the fastest, the default), RGB rows use the Up filter only (libpng's default tries
-all five filters on every row) and zlib's run-length strategy: about half the encoding time for
-files about 1 % larger (docs/formats.md). zlib's run-length coder ignores the level, so other
-levels keep libpng's filters and zlib's default strategy, and a higher level still means smaller
-files."""
+FAST_PNG_LEVELS = range(1, 4)
+"""Levels written by :func:`_fast_png` (ISA-L's deflate levels 1-3); the others by libpng."""
+
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+_FILTER_NONE, _FILTER_SUB, _FILTER_UP = 0, 1, 2  # PNG row filter types (PNG spec, 9.2)
 
 _MASK_PNG_PARAMS = (
     cv2.IMWRITE_PNG_FILTER,
@@ -83,14 +79,61 @@ _MASK_PNG_PARAMS = (
     cv2.IMWRITE_PNG_STRATEGY,
     cv2.IMWRITE_PNG_STRATEGY_RLE,
 )
-"""0/255 masks, at every level: no row filter and zlib's run-length strategy, which suit long
-runs of two values: a few times faster than libpng's adaptive filters and about a third of the
-bytes (the level then changes nothing but level 0, stored)."""
+"""0/255 masks at levels 0 and 4-9 (libpng): no row filter and zlib's run-length strategy, which
+suit long runs of two values (zlib's run-length coder ignores the level, so there the level
+changes nothing but level 0, stored)."""
+
+
+def _png_chunk(kind: bytes, body: bytes) -> bytes:
+    """One PNG chunk: length, type, body, CRC-32 of type and body (PNG spec, 5.3)."""
+    crc = zlib.crc32(body, zlib.crc32(kind))
+    return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", crc)
+
+
+def _filtered_scanlines(rows: NDArray[np.uint8], row_filter: int, bpp: int) -> NDArray[np.uint8]:
+    """``(H, 1 + N)`` PNG scanlines of ``(H, N)`` row bytes: each row's filter type byte, then its
+    bytes filtered (modulo 256) with None, Sub (minus the byte ``bpp`` to the left) or Up (minus
+    the byte above; the first row's "above" is zeros, so it is stored as it is)."""
+    h, n = rows.shape
+    out = np.empty((h, n + 1), dtype=np.uint8)
+    out[:, 0] = row_filter
+    if row_filter == _FILTER_NONE:
+        out[:, 1:] = rows
+    elif row_filter == _FILTER_SUB:
+        out[:, 1 : 1 + bpp] = rows[:, :bpp]
+        np.subtract(rows[:, bpp:], rows[:, :-bpp], out=out[:, 1 + bpp :])
+    else:
+        out[0, 1:] = rows[0]
+        np.subtract(rows[1:], rows[:-1], out=out[1:, 1:])
+    return out
+
+
+def _fast_png(image: NDArray[np.uint8] | NDArray[np.uint16], level: int, row_filter: int) -> bytes:
+    """PNG bytes of a grey ``(H, W)`` uint8/uint16 or RGB ``(H, W, 3)`` uint8 image: one row
+    filter for every row, one IDAT chunk compressed by ISA-L at ``level`` (1-3)."""
+    h, w = image.shape[:2]
+    channels = 1 if image.ndim == 2 else image.shape[2]
+    depth_bits = 8 * image.dtype.itemsize
+    # PNG samples are big-endian
+    samples = image.astype(">u2", copy=False) if depth_bits == 16 else image
+    rows = np.ascontiguousarray(samples).view(np.uint8).reshape(h, -1)
+    colour_type = {1: 0, 3: 2}[channels]  # grey, truecolour
+    header = struct.pack(">IIBBBBB", w, h, depth_bits, colour_type, 0, 0, 0)
+    scanlines = _filtered_scanlines(rows, row_filter, channels * image.dtype.itemsize)
+    return b"".join(
+        (
+            _PNG_SIGNATURE,
+            _png_chunk(b"IHDR", header),
+            _png_chunk(b"IDAT", isal_zlib.compress(scanlines, level)),
+            _png_chunk(b"IEND", b""),
+        )
+    )
 
 
 def _encode(
     image: NDArray[np.uint8] | NDArray[np.uint16], level: int, extra: tuple[int, ...] = ()
 ) -> bytes:
+    """libpng (OpenCV) at ``level`` with ``extra`` imwrite parameters; images in OpenCV's order."""
     params = [cv2.IMWRITE_PNG_COMPRESSION, check_png_compression(level), *extra]
     ok, buf = cv2.imencode(".png", image, params)
     if not ok:  # pragma: no cover - OpenCV fails only on unsupported dtypes, checked by callers
@@ -160,10 +203,11 @@ def _checked_png_chunks(data: bytes, path: str | Path, what: str) -> bytes:
 
 
 def encode_png_rgb(rgb: NDArray[np.uint8], *, level: int = PNG_COMPRESSION) -> bytes:
-    """PNG bytes of an ``(H, W, 3)`` uint8 RGB image (stored as 8-bit colour), zlib ``level``."""
+    """PNG bytes of an ``(H, W, 3)`` uint8 RGB image (stored as 8-bit colour) at ``level``."""
+    if check_png_compression(level) in FAST_PNG_LEVELS:
+        return _fast_png(rgb, level, _FILTER_UP)
     bgr = cast(NDArray[np.uint8], cv2.cvtColor(np.ascontiguousarray(rgb), cv2.COLOR_RGB2BGR))
-    extra = _RGB_PNG_PARAMS if level == 1 else ()
-    return _encode(bgr, level, extra)  # cv2 types results as any dtype; uint8 in, uint8 out
+    return _encode(bgr, level)  # libpng's adaptive row filters, zlib's default strategy
 
 
 def decode_png_rgb(
@@ -192,10 +236,11 @@ def decode_png_rgb(
 
 
 def encode_png_mask(mask: NDArray[np.bool_], *, level: int = PNG_COMPRESSION) -> bytes:
-    """PNG bytes of an ``(H, W)`` bool mask as single-channel 8-bit 0/255, zlib ``level``."""
-    return _encode(
-        np.asarray(mask, dtype=bool).view(np.uint8) * np.uint8(255), level, _MASK_PNG_PARAMS
-    )
+    """PNG bytes of an ``(H, W)`` bool mask as single-channel 8-bit 0/255 at ``level``."""
+    grey = np.asarray(mask, dtype=bool).view(np.uint8) * np.uint8(255)
+    if check_png_compression(level) in FAST_PNG_LEVELS:
+        return _fast_png(grey, level, _FILTER_NONE)
+    return _encode(grey, level, _MASK_PNG_PARAMS)
 
 
 def decode_png_mask(
@@ -218,9 +263,11 @@ def decode_png_mask(
 
 
 def encode_png_u16(image: NDArray[np.uint16], *, level: int = PNG_COMPRESSION) -> bytes:
-    """PNG bytes of an ``(H, W)`` uint16 image (BOP depth), zlib ``level``."""
+    """PNG bytes of an ``(H, W)`` uint16 image (BOP depth) at ``level``."""
     if image.dtype != np.uint16 or image.ndim != 2:
         raise ValueError(f"expected an (H, W) uint16 image, got {image.dtype} {image.shape}")
+    if check_png_compression(level) in FAST_PNG_LEVELS:
+        return _fast_png(image, level, _FILTER_SUB)
     return _encode(image, level)
 
 

@@ -60,7 +60,7 @@ def package_versions(*extra: str) -> dict[str, str]:
         "numpy": np.__version__,
         "opencv": cv2.__version__,
     }
-    for name in ("roft-sim", *extra):
+    for name in ("roft-sim", "isal", *extra):  # isal: the PNG files' deflate
         try:
             versions[name] = importlib_metadata.version(name)
         except importlib_metadata.PackageNotFoundError:
