@@ -66,8 +66,8 @@ def _add_run_arguments(parser: argparse.ArgumentParser) -> None:
         "--png-compression",
         type=int,
         metavar="LEVEL",
-        help="zlib level 0-9 of the PNG files (fast-ycb, bop; default 1, the fastest; 3 gives "
-        "files about 4 %% smaller, encoded 1.6x slower; docs/formats.md)",
+        help="compression level 0-9 of the PNG files (fast-ycb, bop; default 1, the fastest; "
+        "1-3 deflated by ISA-L, 4-9 by libpng/zlib: smaller, much slower; docs/formats.md)",
     )
     parser.add_argument("--overwrite", action="store_true", help="empty a non-empty --out first")
     parser.add_argument(

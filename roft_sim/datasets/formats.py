@@ -84,7 +84,7 @@ def open_writer(
             number (default: the next free one; ``<root>/scene_names.json`` maps it to the name).
         compression: HDF5 only: ``gzip`` (default) or ``lzf``.
         compression_level: HDF5 only: gzip level 1-9 (default 4).
-        png_compression: zlib level 0-9 of the PNG files (fast-ycb, bop; default
+        png_compression: compression level 0-9 of the PNG files (fast-ycb, bop; default
             :data:`~roft_sim.datasets.image_files.PNG_COMPRESSION`).
 
     Returns:

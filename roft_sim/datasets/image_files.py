@@ -39,8 +39,8 @@ __all__ = [
 ]
 
 PNG_COMPRESSION = 1
-"""Default zlib level of the PNGs we write (0-9); a writer's level is part of its settings, so
-a resumed sequence keeps it and its files stay byte-identical."""
+"""Default compression level of the PNGs we write (0-9, zlib's scale); a writer's level is part of
+its settings, so a resumed sequence keeps it and its files stay byte-identical."""
 
 MAX_PNG_SIDE_PX = 1 << 15
 """Largest image side accepted in a PNG header (anything larger is treated as corrupt)."""

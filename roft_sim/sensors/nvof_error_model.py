@@ -108,7 +108,11 @@ class NvofErrorModelConfig:
 
 
 def nvof_error_model(
-    exact_px: F32, config: NvofErrorModelConfig, rng: np.random.Generator
+    exact_px: F32,
+    config: NvofErrorModelConfig,
+    rng: np.random.Generator,
+    *,
+    known_px: Bool | None = None,
 ) -> tuple[F32, Bool]:
     """NVOF-like block flow from an exact dense flow (module doc).
 
@@ -118,6 +122,10 @@ def nvof_error_model(
         config: the error model.
         rng: this frame pair's generator (drawn in a fixed order: jitter rows, jitter columns,
             noise, failures, failure radii, failure angles).
+        known_px: (H, W) bool, True where ``exact_px`` is known; None = where both components
+            are finite. When given, the values of ``exact_px`` elsewhere are never read into
+            the result (they may be anything), so a flow with a validity mask needs no NaN
+            copy.
 
     Returns:
         ``(flow, valid)``: (ceil(H/g), ceil(W/g), 2) float32 block vectors [px] on S10.5's
@@ -129,7 +137,10 @@ def nvof_error_model(
     hg, wg = -(-h // g), -(-w // g)
     # per component and one axis at a time: numpy's reductions over short trailing axes are
     # several times slower
-    known_px = np.isfinite(exact_px[..., 0]) & np.isfinite(exact_px[..., 1])
+    if known_px is None:
+        known_px = np.isfinite(exact_px[..., 0]) & np.isfinite(exact_px[..., 1])
+    elif known_px.shape != (h, w):
+        raise ValueError(f"known_px is {known_px.shape}; the flow is {h}x{w}")
     padded = np.zeros((hg * g, wg * g), dtype=bool)
     padded[:h, :w] = known_px
     valid = cast(Bool, padded.reshape(hg, g, wg * g).any(axis=1).reshape(hg, wg, g).any(axis=2))
@@ -146,9 +157,10 @@ def nvof_error_model(
     )
     r = np.clip(np.rint(rows), 0, h - 1).astype(np.intp)
     c = np.clip(np.rint(cols), 0, w - 1).astype(np.intp)
-    block = exact_px[r, c].astype(np.float64)
+    at = r * w + c  # flat indices: one gather instead of numpy's two-array indexing
+    block = exact_px.reshape(h * w, 2)[at].astype(np.float64)
     # a jittered point without a known flow falls back to its block's mean known flow
-    br, bc = np.nonzero(~known_px[r, c] & valid)
+    br, bc = np.nonzero(~known_px.reshape(h * w)[at] & valid)
     if br.size:
         i = br[:, None] * g + np.arange(g)[None, :]  # (n, g) rows of each block
         j = bc[:, None] * g + np.arange(g)[None, :]  # (n, g) columns
@@ -159,7 +171,7 @@ def nvof_error_model(
         total = np.where(ok[..., None], cells, 0.0).sum(axis=(1, 2))
         block[br, bc] = total / ok.sum(axis=(1, 2))[:, None]
     block[~valid] = 0.0
-    speed = np.linalg.norm(block, axis=2)
+    speed = np.sqrt(block[..., 0] ** 2 + block[..., 1] ** 2)  # np.linalg.norm's bits, faster
     sigma = np.hypot(
         config.sigma_px * -np.expm1(-speed / config.static_speed_px),
         config.relative_sigma * speed,
@@ -212,9 +224,12 @@ class NvofErrorModelFlowSource:
         if exact is None:
             return None
         h, w = sequence.intrinsics.shape
-        flow, valid = nvof_error_model(
-            exact.dense(h, w), self.config, frame_rng(self.seed, from_k, to_k)
-        )
+        rng = frame_rng(self.seed, from_k, to_k)
+        if exact.grid_px == 1 and exact.flow_px.shape[:2] == (h, w):
+            # per-pixel flow: its validity mask as it is, no NaN-filled copy (same result)
+            flow, valid = nvof_error_model(exact.flow_px, self.config, rng, known_px=exact.valid)
+        else:
+            flow, valid = nvof_error_model(exact.dense(h, w), self.config, rng)
         return FlowField(
             flow_px=flow,
             from_k=from_k,

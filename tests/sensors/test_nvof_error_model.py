@@ -120,6 +120,26 @@ def test_unknown_flow_gives_invalid_zero_blocks_and_known_blocks_stay_valid() ->
     assert np.isfinite(flow).all()
 
 
+def test_a_validity_mask_gives_the_same_blocks_as_nan_marked_unknown_flow() -> None:
+    """``known_px`` (what the source passes for a per-pixel FlowField) is the NaN path's twin:
+    the values under a False are never read, whatever they are."""
+    rng = np.random.default_rng(5)
+    config = NvofErrorModelConfig()
+    for trial in range(30):
+        h, w = (int(v) for v in rng.integers(5, 70, 2))
+        exact = (rng.normal(0.0, 1.0, (h, w, 2)) * rng.choice([0.1, 5.0, 40.0])).astype(np.float32)
+        known = rng.random((h, w)) > rng.choice([0.0, 0.1, 0.6])
+        known[: rng.integers(0, h)] &= bool(rng.random() > 0.3)
+        with_nan = np.where(known[..., None], exact, np.float32(np.nan))
+        with_garbage = np.where(known[..., None], exact, np.float32(rng.choice([0.0, 1e30])))
+        a = nvof_error_model(with_nan, config, frame_rng(3, trial, trial + 1))
+        b = nvof_error_model(with_garbage, config, frame_rng(3, trial, trial + 1), known_px=known)
+        np.testing.assert_array_equal(a[0], b[0])
+        np.testing.assert_array_equal(a[1], b[1])
+    with pytest.raises(ValueError, match="known_px"):
+        nvof_error_model(exact, config, frame_rng(0, 0, 1), known_px=known[:-1])
+
+
 def _sequence(exact: np.ndarray, n: int = 4) -> InMemorySequence:
     h, w = exact.shape[:2]
     cam = CameraIntrinsics(
