@@ -204,6 +204,8 @@ def _checked_png_chunks(data: bytes, path: str | Path, what: str) -> bytes:
 
 def encode_png_rgb(rgb: NDArray[np.uint8], *, level: int = PNG_COMPRESSION) -> bytes:
     """PNG bytes of an ``(H, W, 3)`` uint8 RGB image (stored as 8-bit colour) at ``level``."""
+    if rgb.dtype != np.uint8 or rgb.ndim != 3 or rgb.shape[2] != 3:
+        raise ValueError(f"expected an (H, W, 3) uint8 RGB image, got {rgb.dtype} {rgb.shape}")
     if check_png_compression(level) in FAST_PNG_LEVELS:
         return _fast_png(rgb, level, _FILTER_UP)
     bgr = cast(NDArray[np.uint8], cv2.cvtColor(np.ascontiguousarray(rgb), cv2.COLOR_RGB2BGR))

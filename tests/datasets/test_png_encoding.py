@@ -132,6 +132,10 @@ def test_every_kind_round_trips_through_libpng_at_every_level_and_size(h, w, lev
     assert (_libpng(encode_png_u16(u16, level=level)) == u16).all()
 
 
-def test_a_bad_level_is_refused_before_encoding():
+def test_a_bad_level_or_image_is_refused_before_encoding():
     with pytest.raises(ConfigError, match="integer 0-9"):
         encode_png_rgb(np.zeros((2, 2, 3), np.uint8), level=10)
+    with pytest.raises(ValueError, match=r"\(H, W, 3\) uint8"):
+        encode_png_rgb(np.zeros((2, 2, 3), np.float32))
+    with pytest.raises(ValueError, match=r"\(H, W, 3\) uint8"):
+        encode_png_rgb(np.zeros((2, 2, 4), np.uint8))
