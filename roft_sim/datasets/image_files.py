@@ -131,11 +131,21 @@ def _fast_png(image: NDArray[np.uint8] | NDArray[np.uint16], level: int, row_fil
 
 
 def _encode(
-    image: NDArray[np.uint8] | NDArray[np.uint16], level: int, extra: tuple[int, ...] = ()
+    image: NDArray[np.uint8] | NDArray[np.uint16],
+    level: int,
+    row_filter: int,
+    libpng_extra: tuple[int, ...] = (),
 ) -> bytes:
-    """libpng (OpenCV) at ``level`` with ``extra`` imwrite parameters; images in OpenCV's order."""
-    params = [cv2.IMWRITE_PNG_COMPRESSION, check_png_compression(level), *extra]
-    ok, buf = cv2.imencode(".png", image, params)
+    """PNG bytes of a grey ``(H, W)`` or RGB ``(H, W, 3)`` image at ``level``: levels 1-3 by
+    :func:`_fast_png` with ``row_filter``, the others by libpng (OpenCV; RGB turned to its BGR
+    order here) with ``libpng_extra`` imwrite parameters."""
+    if check_png_compression(level) in FAST_PNG_LEVELS:
+        return _fast_png(image, level, row_filter)
+    opencv_order = (
+        cv2.cvtColor(np.ascontiguousarray(image), cv2.COLOR_RGB2BGR) if image.ndim == 3 else image
+    )
+    params = [cv2.IMWRITE_PNG_COMPRESSION, level, *libpng_extra]
+    ok, buf = cv2.imencode(".png", opencv_order, params)
     if not ok:  # pragma: no cover - OpenCV fails only on unsupported dtypes, checked by callers
         raise ValueError(f"OpenCV could not encode a {image.dtype} {image.shape} image as PNG")
     return buf.tobytes()
@@ -206,10 +216,8 @@ def encode_png_rgb(rgb: NDArray[np.uint8], *, level: int = PNG_COMPRESSION) -> b
     """PNG bytes of an ``(H, W, 3)`` uint8 RGB image (stored as 8-bit colour) at ``level``."""
     if rgb.dtype != np.uint8 or rgb.ndim != 3 or rgb.shape[2] != 3:
         raise ValueError(f"expected an (H, W, 3) uint8 RGB image, got {rgb.dtype} {rgb.shape}")
-    if check_png_compression(level) in FAST_PNG_LEVELS:
-        return _fast_png(rgb, level, _FILTER_UP)
-    bgr = cast(NDArray[np.uint8], cv2.cvtColor(np.ascontiguousarray(rgb), cv2.COLOR_RGB2BGR))
-    return _encode(bgr, level)  # libpng's adaptive row filters, zlib's default strategy
+    # libpng: its adaptive row filters, zlib's default strategy
+    return _encode(rgb, level, _FILTER_UP)
 
 
 def decode_png_rgb(
@@ -240,9 +248,7 @@ def decode_png_rgb(
 def encode_png_mask(mask: NDArray[np.bool_], *, level: int = PNG_COMPRESSION) -> bytes:
     """PNG bytes of an ``(H, W)`` bool mask as single-channel 8-bit 0/255 at ``level``."""
     grey = np.asarray(mask, dtype=bool).view(np.uint8) * np.uint8(255)
-    if check_png_compression(level) in FAST_PNG_LEVELS:
-        return _fast_png(grey, level, _FILTER_NONE)
-    return _encode(grey, level, _MASK_PNG_PARAMS)
+    return _encode(grey, level, _FILTER_NONE, _MASK_PNG_PARAMS)
 
 
 def decode_png_mask(
@@ -268,9 +274,7 @@ def encode_png_u16(image: NDArray[np.uint16], *, level: int = PNG_COMPRESSION) -
     """PNG bytes of an ``(H, W)`` uint16 image (BOP depth) at ``level``."""
     if image.dtype != np.uint16 or image.ndim != 2:
         raise ValueError(f"expected an (H, W) uint16 image, got {image.dtype} {image.shape}")
-    if check_png_compression(level) in FAST_PNG_LEVELS:
-        return _fast_png(image, level, _FILTER_SUB)
-    return _encode(image, level)
+    return _encode(image, level, _FILTER_SUB)  # libpng: its default filters
 
 
 def decode_png_u16(
