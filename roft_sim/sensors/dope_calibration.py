@@ -10,7 +10,15 @@ per-object configuration on many ground-truth tracks of the motion a scenario us
 motion), and :func:`fit_object` fits three numbers of one object's configuration to the
 paper's three numbers. ``python -m roft_sim.sensors.dope_calibration [YCB_DIR
 [TRAJECTORIES_DIR]] [--report-only]`` reruns the fit (about 15 minutes on 2 busy cores) and
-prints the tables of docs/sensors.md.
+prints the tables of docs/sensors.md; ``python -m roft_sim.sensors.dope_calibration [YCB_DIR]
+--fit-motion`` reruns the motion fit below (a few minutes).
+
+The same scoring calibrates the ``fast-ycb`` preset's motion (:func:`fit_motion_speed_fraction`,
+``--fit-motion``): the paper's DOPE loses 26.11 ADD-AUC points from "DOPE (ideal)" (every frame,
+84.94 %) to "DOPE" (held at 5 fps, 6 frames late, 58.83 %). The detections are the same in both
+rows, so that loss is set by how far the object moves in 6-12 frames; the fit picks the preset's
+``min_speed_fraction`` (bursts peak at U(fraction, 1) x Fast-YCB's stated peaks) at which the
+pooled "DOPE (ideal)" estimator, calibrated on the ideal row, loses as much.
 """
 
 from __future__ import annotations
@@ -41,6 +49,8 @@ __all__ = [
     "DopeScores",
     "score_dope",
     "fit_object",
+    "motion_held_loss",
+    "fit_motion_speed_fraction",
 ]
 
 REFERENCE_PERIOD_FRAMES = 6
@@ -90,7 +100,11 @@ def held_detection_estimates(
 
 
 def scenario_motion_tracks(
-    scenario_path: Path, seeds: Sequence[int], *, frames: int | None = None
+    scenario_path: Path,
+    seeds: Sequence[int],
+    *,
+    frames: int | None = None,
+    min_speed_fraction: float | None = None,
 ) -> list[PoseTrack]:
     """Ground-truth tracks of a scenario's motion, one per trajectory seed (synthetic motion) or
     the scenario's own captured motion once (``seeds`` then ignored).
@@ -99,13 +113,18 @@ def scenario_motion_tracks(
         scenario_path: a scenario file (e.g. a ``fast-ycb`` preset file).
         seeds: trajectory seeds replacing the scenario's ``[trajectory] seed``.
         frames: frames per track (default the scenario's).
+        min_speed_fraction: replaces the synthetic motion's ``min_speed_fraction`` (None: the
+            scenario's).
+
+    Raises:
+        ConfigError: ``min_speed_fraction`` given for a scenario whose motion is not synthetic.
 
     Returns:
         One :class:`PoseTrack` (camera frame, static camera) per seed, at the scenario's rate.
     """
     from roft_sim.assets import load_object
     from roft_sim.scenario import load_scenario
-    from roft_sim.trajectories import build_trajectory
+    from roft_sim.trajectories import TrajectoryConfig, build_trajectory
     from roft_sim.trajectories.synthetic import SyntheticMotionConfig
 
     scenario = load_scenario(scenario_path)
@@ -113,11 +132,22 @@ def scenario_motion_tracks(
     radius = float(np.linalg.norm(np.asarray(mesh.vertices_m), axis=1).max())
     n = scenario.n_frames if frames is None else frames
     t_s = np.arange(n) / scenario.fps
-    configs = (
-        [dataclasses.replace(scenario.trajectory, seed=s) for s in seeds]
-        if isinstance(scenario.trajectory, SyntheticMotionConfig)
-        else [scenario.trajectory]
-    )
+    trajectory = scenario.trajectory
+    configs: list[TrajectoryConfig]
+    if isinstance(trajectory, SyntheticMotionConfig):
+        fraction = (
+            trajectory.min_speed_fraction if min_speed_fraction is None else min_speed_fraction
+        )
+        configs = [
+            dataclasses.replace(trajectory, seed=s, min_speed_fraction=fraction) for s in seeds
+        ]
+    elif min_speed_fraction is not None:
+        raise ConfigError(
+            f"min_speed_fraction applies to synthetic (bursty) motion; {scenario_path} has "
+            f"{type(trajectory).__name__}"
+        )
+    else:
+        configs = [trajectory]
     tracks = []
     for config in configs:
         traj = build_trajectory(config, scenario.intrinsics, object_radius_m=radius)
@@ -238,6 +268,64 @@ def fit_object(
     return with_params(scale, f_jump, f_flip)
 
 
+def motion_held_loss(
+    paths: Mapping[str, Path],
+    points: Mapping[str, F64],
+    seeds: Sequence[int],
+    min_speed_fraction: float | None = None,
+    *,
+    frames: int | None = None,
+) -> DopeScores:
+    """Both DOPE rows of the pooled "DOPE (ideal)" estimator (``PoseEstimatorConfig()``, the
+    same for every object) on each object's scenario motion (``seeds``, and
+    ``min_speed_fraction`` in place of the scenario's when given; :func:`scenario_motion_tracks`).
+    Their ADD-AUC difference, held minus ideal, is the loss the motion causes."""
+    tracks = {
+        n: scenario_motion_tracks(p, seeds, frames=frames, min_speed_fraction=min_speed_fraction)
+        for n, p in paths.items()
+    }
+    return score_dope({n: PoseEstimatorConfig() for n in paths}, tracks, points)
+
+
+def fit_motion_speed_fraction(
+    loss_pct: Callable[[float], float],
+    target_loss_pct: float,
+    *,
+    bounds: tuple[float, float] = (0.3, 1.0),
+    steps: int = 7,
+) -> float:
+    """The ``min_speed_fraction`` in ``bounds`` at which ``loss_pct(fraction)`` (held minus
+    ideal ADD-AUC [points], negative; more negative as bursts get faster) reaches
+    ``target_loss_pct``: ``steps`` bisections, then, of every fraction evaluated, the one whose
+    loss is nearest the target, rounded to 0.01. (The loss on a fixed set of seeds falls with
+    the fraction but not smoothly: bursts change length and order as their speeds change, so
+    the last midpoint can sit a few hundredths beside a closer one.)
+
+    Raises:
+        ConfigError: the target lies outside what ``bounds`` reach (the loss at each bound is
+            in the message).
+    """
+    lo, hi = bounds
+    if not 0.0 < lo < hi <= 1.0:
+        raise ConfigError(f"bounds must satisfy 0 < lo < hi <= 1, got {bounds!r}")
+    seen = {lo: loss_pct(lo), hi: loss_pct(hi)}
+    if not seen[hi] <= target_loss_pct <= seen[lo]:
+        raise ConfigError(
+            f"a held-minus-ideal loss of {target_loss_pct:.2f} points is not reached with "
+            f"min_speed_fraction in [{lo}, {hi}] (losses {seen[lo]:.2f} .. {seen[hi]:.2f}); the "
+            "motion's other parameters (peaks, holds) must change"
+        )
+    for _ in range(steps):
+        mid = 0.5 * (lo + hi)
+        seen[mid] = loss_pct(mid)
+        if seen[mid] > target_loss_pct:
+            lo = mid
+        else:
+            hi = mid
+    best = min(seen, key=lambda f: abs(seen[f] - target_loss_pct))
+    return round(best, 2)
+
+
 # ------------------------------------------------------------------------------- the fit, rerun
 FIT_SEEDS = SPLIT_SEEDS["tuning"]
 """Trajectory seeds the fit uses (the project's TUNING split: synthetic seeds 0-9)."""
@@ -307,23 +395,14 @@ def _print_scores(
         )
 
 
-def main(
-    assets_dir: Path | None = None, trajectories_dir: Path | None = None, *, fit: bool = True
-) -> dict[str, PoseEstimatorConfig]:
-    """Fits every Fast-YCB object on seeds :data:`FIT_SEEDS` of the ``fast-ycb`` preset's
-    motion (or, with ``fit=False``, takes :data:`FAST_YCB_DOPE`) and prints the configurations
-    and both DOPE rows on the fit split, the report split (:data:`REPORT_SEEDS`) and, with
-    ``trajectories_dir``, captured motion (:func:`captured_evaluation_tracks`)."""
+def _preset_inputs(
+    assets_dir: Path | None,
+) -> tuple[dict[str, Path], dict[str, F64], dict[str, F64]]:
+    """The ``fast-ycb`` preset's scenario files, each object's model points (the real meshes'
+    with ``assets_dir``, else the stand-ins') and the fixed :data:`FIT_POINTS` subset of them."""
     from roft_sim.assets import load_object
     from roft_sim.generation import preset_scenario_paths
-    from roft_sim.report.paper_reference import paper_tables
-    from roft_sim.sensors.pose_estimator import FAST_YCB_DOPE, FAST_YCB_DOPE_BASE
 
-    paper = paper_tables().table1["DOPE"]
-    targets = {
-        name: {m: paper[m][name] for m in ("add_auc_pct", "rmse_t_cm", "rmse_a_deg")}
-        for name in paper["add_auc_pct"]
-    }
     paths = {p.stem: p for p in preset_scenario_paths("fast-ycb")}
     prefer: Literal["ycb", "procedural"] = "procedural" if assets_dir is None else "ycb"
     points = {
@@ -334,6 +413,59 @@ def main(
     fit_points = {
         n: p[pick.choice(len(p), min(FIT_POINTS, len(p)), replace=False)] for n, p in points.items()
     }
+    return paths, points, fit_points
+
+
+def main_fit_motion(assets_dir: Path | None = None) -> float:
+    """Fits the ``fast-ycb`` preset's ``min_speed_fraction`` on :data:`FIT_SEEDS` to the paper's
+    "DOPE (ideal)" -> "DOPE" loss (module doc) and prints both rows at the preset's current
+    value and the fitted one, on the fit and the report split (:data:`REPORT_SEEDS`)."""
+    from roft_sim.report.paper_reference import paper_tables
+
+    table4 = paper_tables().table4
+    ideal, held = table4["DOPE (ideal)"]["add_auc_pct"], table4["DOPE"]["add_auc_pct"]
+    paths, points, fit_points = _preset_inputs(assets_dir)
+
+    def loss(fraction: float) -> float:
+        rows = motion_held_loss(paths, fit_points, FIT_SEEDS, fraction)
+        return rows.held["ALL"].add_auc_pct - rows.ideal["ALL"].add_auc_pct
+
+    fraction = fit_motion_speed_fraction(loss, held - ideal)
+    print(f"paper: DOPE (ideal) {ideal:.2f} %, DOPE {held:.2f} %: loss {held - ideal:.2f} points")
+    print(
+        "| split | min_speed_fraction | ideal ADD-AUC / e_t / e_a | held ADD-AUC / e_t / e_a "
+        "| loss |"
+    )
+    print("|---|---|---|---|---|")
+    for split, seeds in (("fit (seeds 0-9)", FIT_SEEDS), ("report (seeds 100-109)", REPORT_SEEDS)):
+        for value in (None, fraction):
+            rows = motion_held_loss(paths, points, seeds, value)
+            i, h = rows.ideal["ALL"], rows.held["ALL"]
+            print(
+                f"| {split} | {'preset' if value is None else value} | {i.add_auc_pct:.2f} / "
+                f"{i.rmse_t_cm:.2f} / {i.rmse_a_deg:.2f} | {h.add_auc_pct:.2f} / "
+                f"{h.rmse_t_cm:.2f} / {h.rmse_a_deg:.2f} | {h.add_auc_pct - i.add_auc_pct:.2f} |",
+                flush=True,
+            )
+    return fraction
+
+
+def main(
+    assets_dir: Path | None = None, trajectories_dir: Path | None = None, *, fit: bool = True
+) -> dict[str, PoseEstimatorConfig]:
+    """Fits every Fast-YCB object on seeds :data:`FIT_SEEDS` of the ``fast-ycb`` preset's
+    motion (or, with ``fit=False``, takes :data:`FAST_YCB_DOPE`) and prints the configurations
+    and both DOPE rows on the fit split, the report split (:data:`REPORT_SEEDS`) and, with
+    ``trajectories_dir``, captured motion (:func:`captured_evaluation_tracks`)."""
+    from roft_sim.report.paper_reference import paper_tables
+    from roft_sim.sensors.pose_estimator import FAST_YCB_DOPE, FAST_YCB_DOPE_BASE
+
+    paper = paper_tables().table1["DOPE"]
+    targets = {
+        name: {m: paper[m][name] for m in ("add_auc_pct", "rmse_t_cm", "rmse_a_deg")}
+        for name in paper["add_auc_pct"]
+    }
+    paths, points, fit_points = _preset_inputs(assets_dir)
     fit_tracks = {n: scenario_motion_tracks(p, FIT_SEEDS) for n, p in paths.items()}
     configs = dict(FAST_YCB_DOPE)
     for name in paths if fit else ():
@@ -365,4 +497,7 @@ if __name__ == "__main__":  # pragma: no cover - a maintenance script
     import sys
 
     paths_given = [Path(a) for a in sys.argv[1:] if not a.startswith("--")]
-    main(*paths_given[:2], fit="--report-only" not in sys.argv)
+    if "--fit-motion" in sys.argv:
+        main_fit_motion(*paths_given[:1])
+    else:
+        main(*paths_given[:2], fit="--report-only" not in sys.argv)
