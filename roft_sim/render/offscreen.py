@@ -12,11 +12,11 @@ context never has one).
 Depth and segmentation come from MuJoCo's segmentation pass (flat colours, no lighting), which
 MuJoCo renders without blending samples, so every pixel's depth belongs to the geom its id names.
 That pass is drawn into a second, single-sample framebuffer (a second ``MjrContext`` made with
-``offsamples = 0`` in the same OpenGL context): with multisampling off, every sample of a pixel
-holds the pixel centre's value, so the multisampled buffer and its resolve give the same ids and
-depth, bit for bit (tested), for about a quarter of the fill and no resolve (3.2 vs 11-12 ms of
-CPU per 640x480 pass on llvmpipe). Without segmentation and without multisampling, depth is read
-from the colour pass (one pass).
+``offsamples = 0``, no shadow map and 1x1 textures in the same OpenGL context): with
+multisampling off, every sample of a pixel holds the pixel centre's value, so the multisampled
+buffer and its resolve give the same ids and depth, bit for bit (tested), for about a quarter of
+the fill and no resolve (3.2 vs 11-12 ms of CPU per 640x480 pass on llvmpipe). Without
+segmentation and without multisampling, depth is read from the colour pass (one pass).
 
 ``MUJOCO_GL`` must be set before ``mujoco`` is first imported: call
 ``roft_sim.render.gl_backend.select_gl_backend(os.environ)`` first (the CLI and tests do).
@@ -133,17 +133,27 @@ class OffscreenRenderer:
         if self._model.vis.quality.offsamples <= 0:
             return self._ctx
         if self._flat_ctx is None:
-            # single-sample, and without a shadow map (the pass casts no shadows; MuJoCo
-            # allocates a shadowsize x shadowsize depth texture in every context)
-            quality = self._model.vis.quality
+            # single-sample, without a shadow map (the pass casts no shadows; MuJoCo allocates a
+            # shadowsize x shadowsize depth texture in every context) and without the model's
+            # images: the pass draws flat colours and samples no texture, so every texture is
+            # uploaded as its first texel (1x1) instead of at full size with mipmaps (a 2k
+            # object atlas and two 1k scene textures: 0.07 s and 20-32 MB of peak memory
+            # per renderer; the ids and depth are the same, tested)
+            model = self._model
+            quality = model.vis.quality
             samples, shadow_px = quality.offsamples, quality.shadowsize
+            widths, heights = model.tex_width.copy(), model.tex_height.copy()
             quality.offsamples = quality.shadowsize = 0
+            model.tex_width[:] = 1
+            model.tex_height[:] = 1
             try:
-                self._flat_ctx = self._make_context(self._model)
+                self._flat_ctx = self._make_context(model)
             except (mujoco.FatalError, RuntimeError, AttributeError) as e:
                 raise context_error(e) from e
             finally:
                 quality.offsamples, quality.shadowsize = samples, shadow_px
+                model.tex_width[:] = widths
+                model.tex_height[:] = heights
         return self._flat_ctx
 
     @property

@@ -87,3 +87,47 @@ def test_a_shadow_map_is_made_only_where_shadows_are_cast(shadows):
         else:
             with pytest.raises(ConfigError, match="no shadow map"):
                 r.render(rgb=True, shadows=True)
+
+
+def test_segmentation_context_holds_one_texel_per_texture_and_leaves_the_model_as_it_was():
+    """The segmentation pass samples no texture, so its context uploads each texture as 1x1
+    (the ids and depth it gives equal the colour pass's: the test above); the model keeps its
+    texture sizes and the colour pass its images."""
+    from OpenGL import GL
+
+    built = build_scene(
+        intrinsics=SMALL_CAMERA,
+        object_mesh=grid_box_mesh(n=6, texture_px=64),
+        scene=SceneConfig(),
+        render=RenderConfig(msaa_samples=4),
+        rng=np.random.default_rng(0),
+    )
+    model = built.model
+    sizes = (model.tex_width.copy(), model.tex_height.copy())
+    assert model.ntex >= 2 and sizes[0].max() > 1
+    data = mujoco.MjData(model)
+    T = SinusoidalTrajectory().sample(np.array([0.4])).T_ref_obj[0]
+    data.mocap_pos[built.object_mocap] = T[:3, 3]
+    data.mocap_quat[built.object_mocap] = quat_from_matrix(T[:3, :3])
+    mujoco.mj_kinematics(model, data)
+    mujoco.mj_camlight(model, data)
+    with OffscreenRenderer(model, SMALL_CAMERA.width_px, SMALL_CAMERA.height_px) as r:
+        r.update(data, built.camera_id)
+        before = r.render(rgb=True, depth=False, segmentation=False).rgb
+        r.render(rgb=False, depth=True, segmentation=True)
+        np.testing.assert_array_equal(model.tex_width, sizes[0])
+        np.testing.assert_array_equal(model.tex_height, sizes[1])
+        after = r.render(rgb=True, depth=False, segmentation=False).rgb
+        np.testing.assert_array_equal(after, before)
+
+        def level0_width(ctx: mujoco.MjrContext, i: int) -> int:
+            flat = model.tex_type[i] == mujoco.mjtTexture.mjTEXTURE_2D
+            target = GL.GL_TEXTURE_2D if flat else GL.GL_TEXTURE_CUBE_MAP
+            query = GL.GL_TEXTURE_2D if flat else GL.GL_TEXTURE_CUBE_MAP_POSITIVE_X
+            GL.glBindTexture(target, ctx.texture[i])
+            return int(GL.glGetTexLevelParameteriv(query, 0, GL.GL_TEXTURE_WIDTH))
+
+        assert r._ctx is not None and r._flat_ctx is not None
+        for i in range(model.ntex):
+            assert level0_width(r._ctx, i) == sizes[0][i]
+            assert level0_width(r._flat_ctx, i) == 1
