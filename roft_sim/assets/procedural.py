@@ -79,8 +79,9 @@ def _shelf_pack(padded: F64, row_width: float) -> tuple[F64, float, float]:
     """Places padded rectangles (n, 2) in rows of at most ``row_width``, tallest first.
 
     The loop runs on Python floats (the same IEEE arithmetic as numpy's scalars, several times
-    faster: :func:`_pack_charts` calls this thousands of times per object); the width and height
-    are returned as numpy scalars, as numpy arithmetic gave them, since the caller rounds them."""
+    faster); the width and height are returned as numpy scalars, as numpy arithmetic gave them,
+    since the caller rounds them. :func:`_shelf_pack_widths` is the same packing for many row
+    widths at once."""
     order = np.argsort(-padded[:, 1], kind="stable").tolist()
     sizes = padded.tolist()
     limit = float(row_width) + 1e-12
@@ -97,12 +98,38 @@ def _shelf_pack(padded: F64, row_width: float) -> tuple[F64, float, float]:
     return np.array(offsets, dtype=np.float64), np.float64(used_w), np.float64(y + row_h)
 
 
+def _shelf_pack_widths(padded: F64, row_widths: F64) -> tuple[F64, F64, F64]:
+    """:func:`_shelf_pack` of the rectangles ``padded`` (n, 2) for each of ``row_widths`` (R,),
+    vectorised over the widths with the same float64 operations, so bit for bit the same.
+
+    Returns:
+        Offsets (R, n, 2), atlas widths (R,) and heights (R,), all float64.
+    """
+    order = np.argsort(-padded[:, 1], kind="stable")
+    limit = np.asarray(row_widths, dtype=np.float64) + 1e-12
+    r = limit.shape[0]
+    offsets = np.zeros((r, padded.shape[0], 2))
+    x, y, row_h, used_w = (np.zeros(r) for _ in range(4))
+    for i in order:
+        w, h = padded[i]
+        wrap = (x > 0) & (x + w > limit)
+        y = np.where(wrap, y + row_h, y)
+        x = np.where(wrap, 0.0, x)
+        row_h = np.where(wrap, 0.0, row_h)
+        offsets[:, i, 0], offsets[:, i, 1] = x, y
+        x = x + w
+        row_h = np.maximum(row_h, h)
+        used_w = np.maximum(used_w, x)
+    return offsets, used_w, y + row_h
+
+
 def _pack_charts(sizes_m: list[tuple[float, float]]) -> tuple[F64, NDArray[np.bool_], F64]:
     """Packs chart rectangles (optionally turned by 90 degrees) into a small atlas.
 
     Minimises the atlas' longer side (which sets the texel density for a given texture size),
-    then its area. Returns lower-left offsets (n, 2) [m], the turned flags (n,) and the atlas
-    size (width, height) [m], gutters included.
+    then its area, over every turn option and 48 row widths (the first such layout in that
+    order). Returns lower-left offsets (n, 2) [m], the turned flags (n,) and the atlas size
+    (width, height) [m], gutters included.
     """
     sizes = np.asarray(sizes_m, dtype=np.float64)
     n = len(sizes)
@@ -114,11 +141,15 @@ def _pack_charts(sizes_m: list[tuple[float, float]]) -> tuple[F64, NDArray[np.bo
     best: tuple[tuple[float, float], F64, NDArray[np.bool_], F64] | None = None
     for turned in turn_options:
         padded = np.where(turned[:, None], sizes[:, ::-1], sizes) + 2 * gutter
-        for row_width in np.linspace(padded[:, 0].max(), padded[:, 0].sum(), 48):
-            offsets, w, h = _shelf_pack(padded, row_width)
-            score = (round(max(w, h), 12), w * h)
-            if best is None or score < best[0]:
-                best = (score, offsets + gutter, turned, np.array([w, h]))
+        widths = np.linspace(padded[:, 0].max(), padded[:, 0].sum(), 48)
+        offsets, w, h = _shelf_pack_widths(padded, widths)
+        # (longer side rounded as round() rounds a numpy scalar, area): the first minimum
+        longer = np.round(np.maximum(w, h), 12)
+        ties = np.flatnonzero(longer == longer.min())
+        k = int(ties[np.argmin((w * h)[ties])])
+        score = (float(longer[k]), float(w[k] * h[k]))
+        if best is None or score < best[0]:
+            best = (score, offsets[k] + gutter, turned, np.array([w[k], h[k]]))
     assert best is not None  # the loops run at least once
     return best[1], best[2], best[3]
 

@@ -12,7 +12,9 @@ from scipy.special import gamma
 from roft_sim.assets import get_object_info, list_objects, load_object
 from roft_sim.assets.procedural import (
     MAX_CHART_STRETCH,
+    _pack_charts,
     _shelf_pack,
+    _shelf_pack_widths,
     box_mesh,
     lofted_mesh,
     projected_atlas,
@@ -284,3 +286,50 @@ def test_shelf_packing_is_the_numpy_scalar_loop_bit_for_bit():
             assert got[0].tobytes() == expected[0].tobytes()
             for a, b in zip(got[1:], expected[1:], strict=True):
                 assert type(a) is type(b) and a == b  # numpy scalars: the caller rounds them
+
+
+def test_shelf_packing_of_many_widths_is_the_scalar_loop_bit_for_bit():
+    rng = np.random.default_rng(5)
+    for n in (1, 2, 6, 11):
+        padded = rng.uniform(0.005, 0.3, (n, 2))
+        padded[n // 2] = padded[0]  # equal heights: the stable order matters
+        widths = np.linspace(padded[:, 0].max(), padded[:, 0].sum(), 48)
+        offsets, w, h = _shelf_pack_widths(padded, widths)
+        for k, row_width in enumerate(widths):
+            one = _shelf_pack(padded, row_width)
+            assert offsets[k].tobytes() == one[0].tobytes()
+            assert w[k] == one[1] and h[k] == one[2]
+
+
+def _pack_charts_sequential(sizes_m):
+    """The chart packing search as it was first written, one width at a time: the oracle of the
+    vectorised search (every stand-in's atlas layout, hence its UVs, depends on it)."""
+    sizes = np.asarray(sizes_m, dtype=np.float64)
+    n = len(sizes)
+    gutter = 0.01 * np.sqrt(float((sizes[:, 0] * sizes[:, 1]).sum()))
+    if n <= 8:
+        turn_options = [np.array([(m >> i) & 1 for i in range(n)], dtype=bool) for m in range(2**n)]
+    else:
+        turn_options = [np.zeros(n, dtype=bool), sizes[:, 1] > sizes[:, 0]]
+    best = None
+    for turned in turn_options:
+        padded = np.where(turned[:, None], sizes[:, ::-1], sizes) + 2 * gutter
+        for row_width in np.linspace(padded[:, 0].max(), padded[:, 0].sum(), 48):
+            offsets, w, h = _shelf_pack(padded, row_width)
+            score = (round(max(w, h), 12), w * h)
+            if best is None or score < best[0]:
+                best = (score, offsets + gutter, turned, np.array([w, h]))
+    return best[1], best[2], best[3]
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_chart_packing_is_the_sequential_search_bit_for_bit(seed):
+    rng = np.random.default_rng(seed)
+    cases = [[tuple(rng.uniform(0.01, 0.3, 2)) for _ in range(n)] for n in (1, 3, 6, 9)]
+    d = rng.uniform(0.03, 0.25, 3)  # a box's six faces: three pairs of equal charts
+    cases.append([(d[0], d[1]), (d[1], d[2]), (d[0], d[2])] * 2)
+    cases.append([(0.1, 0.1)] * 6)  # a cube: every turn option ties
+    for sizes in cases:
+        got, expected = _pack_charts(sizes), _pack_charts_sequential(sizes)
+        for a, b in zip(got, expected, strict=True):
+            assert a.dtype == b.dtype and a.tobytes() == b.tobytes()
