@@ -395,6 +395,28 @@ def _print_scores(
         )
 
 
+def _print_spread(
+    configs: Mapping[str, PoseEstimatorConfig],
+    tracks: Mapping[str, Sequence[PoseTrack]],
+    points: Mapping[str, F64],
+) -> None:
+    """Held ADD-AUC of each track alone, per object: what one sequence (a paper run's) scores."""
+    print("\nreport split, one sequence at a time (held ADD-AUC per seed; mean, sample sd)")
+    for i, name in enumerate(sorted(tracks)):
+        # the object's draws of score_dope (object index i, track index j), one track at a time
+        values = []
+        for j, track in enumerate(tracks[name]):
+            rng = np.random.default_rng(np.random.SeedSequence([0, i, j]))
+            det = sample_pose_detections(track, configs[name], rng).detector_poses
+            T_held, ok = held_detection_estimates(det)
+            metrics = evaluate_sequence(
+                T_held, track.T_cam_obj, points[name], valid=ok, invalid="exclude"
+            )
+            values.append(metrics.add_auc_pct)
+        cells = " ".join(f"{v:.2f}" for v in values)
+        print(f"{name}: {cells}; {np.mean(values):.2f}, {np.std(values, ddof=1):.2f}")
+
+
 def _preset_inputs(
     assets_dir: Path | None,
 ) -> tuple[dict[str, Path], dict[str, F64], dict[str, F64]]:
@@ -483,6 +505,7 @@ def main(
     _print_scores(
         "report split (seeds 100-109)", score_dope(configs, report_tracks, points), targets
     )
+    _print_spread(configs, report_tracks, points)
     if trajectories_dir is not None:
         captured = list(captured_evaluation_tracks(trajectories_dir).values())
         _print_scores(

@@ -241,3 +241,24 @@ def test_preset_motion_loses_the_papers_ideal_to_held_share_on_the_report_seeds(
     paper = table4["DOPE"]["add_auc_pct"] - table4["DOPE (ideal)"]["add_auc_pct"]
     reached = rows.held["ALL"].add_auc_pct - rows.ideal["ALL"].add_auc_pct
     assert abs(reached - paper) <= MOTION_LOSS_TOLERANCE, (reached, paper)
+
+
+def test_spread_prints_each_sequence_with_the_pooled_runs_draws(capsys):
+    """One line per object: the held ADD-AUC of each track alone (drawn as ``score_dope`` draws
+    it for that object and track), then their mean and sample standard deviation."""
+    from roft_sim.sensors.dope_calibration import _print_spread, score_dope
+
+    points = np.random.default_rng(1).uniform(-0.05, 0.05, (64, 3))
+    tracks = {"a_object": [_track(60), _track(90)]}
+    configs = {"a_object": PoseEstimatorConfig()}
+    _print_spread(configs, tracks, {"a_object": points})
+    line = capsys.readouterr().out.strip().splitlines()[-1]
+    name, rest = line.split(": ")
+    values = [float(v) for v in rest.split(";")[0].split()]
+    mean, sd = (float(v) for v in rest.split(";")[1].split(","))
+    assert name == "a_object" and len(values) == 2
+    assert mean == pytest.approx(np.mean(values), abs=0.01)
+    assert sd == pytest.approx(np.std(values, ddof=1), abs=0.01)
+    # the first track alone, drawn as the pooled scoring draws object 0's track 0
+    alone = score_dope(configs, {"a_object": tracks["a_object"][:1]}, {"a_object": points})
+    assert values[0] == pytest.approx(alone.held["a_object"].add_auc_pct, abs=0.01)
