@@ -75,32 +75,10 @@ class AtlasMesh:
         return max(1, round(h * scale)), max(1, round(w * scale))
 
 
-def _shelf_pack(padded: F64, row_width: float) -> tuple[F64, float, float]:
-    """Places padded rectangles (n, 2) in rows of at most ``row_width``, tallest first.
-
-    The loop runs on Python floats (the same IEEE arithmetic as numpy's scalars, several times
-    faster); the width and height are returned as numpy scalars, as numpy arithmetic gave them,
-    since the caller rounds them. :func:`_shelf_pack_widths` is the same packing for many row
-    widths at once."""
-    order = np.argsort(-padded[:, 1], kind="stable").tolist()
-    sizes = padded.tolist()
-    limit = float(row_width) + 1e-12
-    offsets = [(0.0, 0.0)] * len(sizes)
-    x = y = row_h = used_w = 0.0
-    for i in order:
-        w, h = sizes[i]
-        if x > 0 and x + w > limit:
-            y, x, row_h = y + row_h, 0.0, 0.0
-        offsets[i] = (x, y)
-        x += w
-        row_h = max(row_h, h)
-        used_w = max(used_w, x)
-    return np.array(offsets, dtype=np.float64), np.float64(used_w), np.float64(y + row_h)
-
-
 def _shelf_pack_widths(padded: F64, row_widths: F64) -> tuple[F64, F64, F64]:
-    """:func:`_shelf_pack` of the rectangles ``padded`` (n, 2) for each of ``row_widths`` (R,),
-    vectorised over the widths with the same float64 operations, so bit for bit the same.
+    """Places padded rectangles (n, 2) in rows of at most each of ``row_widths`` (R,), tallest
+    first (a stable order), one packing per width, vectorised over the widths: the float64
+    operations of the one-width loop, so bit for bit what that loop gives (tested).
 
     Returns:
         Offsets (R, n, 2), atlas widths (R,) and heights (R,), all float64.

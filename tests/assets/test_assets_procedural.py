@@ -13,7 +13,6 @@ from roft_sim.assets import get_object_info, list_objects, load_object
 from roft_sim.assets.procedural import (
     MAX_CHART_STRETCH,
     _pack_charts,
-    _shelf_pack,
     _shelf_pack_widths,
     box_mesh,
     lofted_mesh,
@@ -276,29 +275,17 @@ def _shelf_pack_numpy(padded, row_width):
     return offsets, used_w, y + row_h
 
 
-def test_shelf_packing_is_the_numpy_scalar_loop_bit_for_bit():
+def test_shelf_packing_of_many_widths_is_the_numpy_scalar_loop_bit_for_bit():
     rng = np.random.default_rng(4)
-    for n in (1, 2, 6, 11):
-        padded = rng.uniform(0.005, 0.3, (n, 2))
-        padded[n // 2] = padded[0]  # equal heights: the stable order matters
-        for row_width in np.linspace(padded[:, 0].max(), padded[:, 0].sum(), 48):
-            got, expected = _shelf_pack(padded, row_width), _shelf_pack_numpy(padded, row_width)
-            assert got[0].tobytes() == expected[0].tobytes()
-            for a, b in zip(got[1:], expected[1:], strict=True):
-                assert type(a) is type(b) and a == b  # numpy scalars: the caller rounds them
-
-
-def test_shelf_packing_of_many_widths_is_the_scalar_loop_bit_for_bit():
-    rng = np.random.default_rng(5)
     for n in (1, 2, 6, 11):
         padded = rng.uniform(0.005, 0.3, (n, 2))
         padded[n // 2] = padded[0]  # equal heights: the stable order matters
         widths = np.linspace(padded[:, 0].max(), padded[:, 0].sum(), 48)
         offsets, w, h = _shelf_pack_widths(padded, widths)
         for k, row_width in enumerate(widths):
-            one = _shelf_pack(padded, row_width)
-            assert offsets[k].tobytes() == one[0].tobytes()
-            assert w[k] == one[1] and h[k] == one[2]
+            expected = _shelf_pack_numpy(padded, row_width)
+            assert offsets[k].tobytes() == expected[0].tobytes()
+            assert w[k] == expected[1] and h[k] == expected[2]
 
 
 def _pack_charts_sequential(sizes_m):
@@ -315,7 +302,7 @@ def _pack_charts_sequential(sizes_m):
     for turned in turn_options:
         padded = np.where(turned[:, None], sizes[:, ::-1], sizes) + 2 * gutter
         for row_width in np.linspace(padded[:, 0].max(), padded[:, 0].sum(), 48):
-            offsets, w, h = _shelf_pack(padded, row_width)
+            offsets, w, h = _shelf_pack_numpy(padded, row_width)
             score = (round(max(w, h), 12), w * h)
             if best is None or score < best[0]:
                 best = (score, offsets + gutter, turned, np.array([w, h]))
