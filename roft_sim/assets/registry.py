@@ -247,8 +247,15 @@ def get_object_info(name: str) -> ObjectInfo:
     """The registry entry called ``name``.
 
     Raises:
+        TypeError: ``name`` is not a string (e.g. an :class:`ObjectInfo`, which is already the
+            entry).
         UnknownObjectError: no such entry (the message lists the known names).
     """
+    if not isinstance(name, str):
+        raise TypeError(
+            f"get_object_info takes an object's name (a str such as '003_cracker_box'), got "
+            f"{type(name).__name__}; an ObjectInfo from list_objects() is already the entry"
+        )
     registry = _builtin_registry()
     if name not in registry:
         close = difflib.get_close_matches(name, list(registry), n=1, cutoff=0.5)

@@ -154,3 +154,12 @@ def test_a_bottle_profile_must_agree_with_the_dimensions(tmp_path):
 def test_missing_manifest_file(tmp_path):
     with pytest.raises(ConfigError, match=r"does not exist"):
         load_manifest(tmp_path / "nope.toml")
+
+
+def test_an_entry_instead_of_a_name_is_refused_with_what_was_expected():
+    from roft_sim.assets import list_objects
+
+    entry = list_objects()[0]
+    with pytest.raises(TypeError, match=r"takes an object's name .* got ObjectInfo"):
+        get_object_info(entry)  # type: ignore[arg-type]
+    assert get_object_info(entry.name) == entry
