@@ -163,6 +163,8 @@ class DopeScores:
     """"DOPE" (Table I, Table IV): 5 fps, 6 frames late, held (:func:`held_detection_estimates`)."""
     ideal: dict[str, SequenceMetrics]
     """"DOPE (ideal)" (Table IV): every detected frame at its own frame, misses left out."""
+    held_per_track: dict[str, tuple[SequenceMetrics, ...]]
+    """Per object, the held row of each of its tracks alone (what one sequence scores)."""
 
 
 def score_dope(
@@ -185,6 +187,7 @@ def score_dope(
     """
     held: dict[str, SequenceMetrics] = {}
     ideal: dict[str, SequenceMetrics] = {}
+    held_per_track: dict[str, tuple[SequenceMetrics, ...]] = {}
     for i, name in enumerate(sorted(tracks)):
         held_parts, ideal_parts = [], []
         for j, gt in enumerate(tracks[name]):
@@ -207,7 +210,10 @@ def score_dope(
             )
         held[name] = pool_metrics({str(j): m for j, m in enumerate(held_parts)})["ALL"]
         ideal[name] = pool_metrics({str(j): m for j, m in enumerate(ideal_parts)})["ALL"]
-    return DopeScores(held=pool_metrics(held), ideal=pool_metrics(ideal))
+        held_per_track[name] = tuple(held_parts)
+    return DopeScores(
+        held=pool_metrics(held), ideal=pool_metrics(ideal), held_per_track=held_per_track
+    )
 
 
 def fit_object(
@@ -395,24 +401,11 @@ def _print_scores(
         )
 
 
-def _print_spread(
-    configs: Mapping[str, PoseEstimatorConfig],
-    tracks: Mapping[str, Sequence[PoseTrack]],
-    points: Mapping[str, F64],
-) -> None:
+def _print_spread(scores: DopeScores) -> None:
     """Held ADD-AUC of each track alone, per object: what one sequence (a paper run's) scores."""
     print("\nreport split, one sequence at a time (held ADD-AUC per seed; mean, sample sd)")
-    for i, name in enumerate(sorted(tracks)):
-        # the object's draws of score_dope (object index i, track index j), one track at a time
-        values = []
-        for j, track in enumerate(tracks[name]):
-            rng = np.random.default_rng(np.random.SeedSequence([0, i, j]))
-            det = sample_pose_detections(track, configs[name], rng).detector_poses
-            T_held, ok = held_detection_estimates(det)
-            metrics = evaluate_sequence(
-                T_held, track.T_cam_obj, points[name], valid=ok, invalid="exclude"
-            )
-            values.append(metrics.add_auc_pct)
+    for name, parts in sorted(scores.held_per_track.items()):
+        values = [m.add_auc_pct for m in parts]
         cells = " ".join(f"{v:.2f}" for v in values)
         print(f"{name}: {cells}; {np.mean(values):.2f}, {np.std(values, ddof=1):.2f}")
 
@@ -502,10 +495,9 @@ def main(
         print(f"{name}: {configs[name]!r}", flush=True)
     _print_scores("fit split (seeds 0-9)", score_dope(configs, fit_tracks, points), targets)
     report_tracks = {n: scenario_motion_tracks(p, REPORT_SEEDS) for n, p in paths.items()}
-    _print_scores(
-        "report split (seeds 100-109)", score_dope(configs, report_tracks, points), targets
-    )
-    _print_spread(configs, report_tracks, points)
+    report = score_dope(configs, report_tracks, points)
+    _print_scores("report split (seeds 100-109)", report, targets)
+    _print_spread(report)
     if trajectories_dir is not None:
         captured = list(captured_evaluation_tracks(trajectories_dir).values())
         _print_scores(

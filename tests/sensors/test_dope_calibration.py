@@ -244,14 +244,14 @@ def test_preset_motion_loses_the_papers_ideal_to_held_share_on_the_report_seeds(
 
 
 def test_spread_prints_each_sequence_with_the_pooled_runs_draws(capsys):
-    """One line per object: the held ADD-AUC of each track alone (drawn as ``score_dope`` draws
-    it for that object and track), then their mean and sample standard deviation."""
+    """One line per object: the held ADD-AUC of each track alone (from the pooled scoring's own
+    draws for that object and track), then their mean and sample standard deviation."""
     from roft_sim.sensors.dope_calibration import _print_spread, score_dope
 
     points = np.random.default_rng(1).uniform(-0.05, 0.05, (64, 3))
     tracks = {"a_object": [_track(60), _track(90)]}
     configs = {"a_object": PoseEstimatorConfig()}
-    _print_spread(configs, tracks, {"a_object": points})
+    _print_spread(score_dope(configs, tracks, {"a_object": points}))
     line = capsys.readouterr().out.strip().splitlines()[-1]
     name, rest = line.split(": ")
     values = [float(v) for v in rest.split(";")[0].split()]
