@@ -156,7 +156,12 @@ def _print_result(
                     "out": str(out),
                     "tables": str(result.tables_md),
                     "findings": [
-                        {"claim": f.claim, "holds": f.holds, "evidence": f.evidence}
+                        {
+                            "claim": f.claim,
+                            "configuration": f.configuration,
+                            "holds": f.holds,
+                            "evidence": f.evidence,
+                        }
                         for f in result.findings
                     ],
                     "wall_s": timing,

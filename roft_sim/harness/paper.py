@@ -57,6 +57,7 @@ __all__ = [
     "run_paper",
     "paper_metrics",
     "check_findings",
+    "checked_configurations",
     "Finding",
 ]
 
@@ -160,7 +161,7 @@ def _reference_rows() -> tuple[PaperRow, ...]:
         if r.tracker != "roft":
             continue
         key = r.key.replace("roft", "roft_reference", 1)
-        tables = ("I", "IV") if r.key == "roft" else ("IV",)
+        tables = tuple(t for t in r.tables if t in ("I", "II", "IV"))
         label = r.label.replace("ROFT", "ROFT (reference config)", 1)
         rows.append(
             dataclasses.replace(
@@ -306,6 +307,9 @@ class Finding:
 
     claim: str
     """What the paper finds."""
+    configuration: str = "roft"
+    """The key of the plain ROFT row whose Table IV rows were checked (``roft``: our default,
+    ``roft_reference``: the reference configuration)."""
     holds: bool | None
     """True / False; None when the rows needed were not run."""
     evidence: str
@@ -323,14 +327,28 @@ def _fmt(x: float | None) -> str:
     return "n/a" if x is None else f"{x:.2f}"
 
 
-def check_findings(results: dict[str, RowMetrics]) -> list[Finding]:
+def check_findings(results: dict[str, RowMetrics], *, configuration: str = "roft") -> list[Finding]:
     """The paper's qualitative findings (issue 7's 'done means') against ``results`` (ALL).
 
     Each finding is a list of comparisons; it holds when all hold, is None when a row it needs
     is missing, and its evidence lists the numbers and the comparisons that fail.
+
+    Args:
+        results: per row key, the metrics.
+        configuration: the key of the plain ROFT row to check; its Table IV rows are that key
+            with the default rows' suffixes (as in :func:`table4_order`): ``roft`` checks our
+            default, ``roft_reference`` the reference configuration. The evidence names the
+            rows by their keys.
     """
     pose_metrics = ("add_auc_pct", "rmse_t_cm", "rmse_a_deg")
     velocity_metrics = ("rmse_v_cmps", "rmse_w_dps")
+
+    def key(default_key: str) -> str:
+        return configuration + default_key.removeprefix("roft")
+
+    roft, ablation_rows = key("roft"), [key(k) for k in _ABLATION_ROWS]
+    gt_rows = [key(k) for k in _GT_ROWS]
+    worst_rows = {key("roft_no_velocity"), key("roft_no_pose")}
 
     def better(a: str, b: str, metric: str) -> tuple[str, bool | None]:
         x, y = _all(results, a, metric), _all(results, b, metric)
@@ -338,8 +356,8 @@ def check_findings(results: dict[str, RowMetrics]) -> list[Finding]:
         return f"{a} better than {b} on {metric}", verdict
 
     def worst_two(metric: str) -> tuple[str, bool | None]:
-        rows = [k for k in _ABLATION_ROWS if _all(results, k, metric) is not None]
-        if not {"roft_no_velocity", "roft_no_pose"} <= set(rows) or len(rows) < 3:
+        rows = [k for k in ablation_rows if _all(results, k, metric) is not None]
+        if not worst_rows <= set(rows) or len(rows) < 3:
             return f"worst two on {metric}", None
         order = sorted(
             rows,
@@ -348,10 +366,7 @@ def check_findings(results: dict[str, RowMetrics]) -> list[Finding]:
             reverse=metric != "add_auc_pct",
         )
         worst = set(order[:2])
-        return f"worst two on {metric} are {sorted(worst)}", worst == {
-            "roft_no_velocity",
-            "roft_no_pose",
-        }
+        return f"worst two on {metric} are {sorted(worst)}", worst == worst_rows
 
     def finding(
         claim: str,
@@ -366,14 +381,15 @@ def check_findings(results: dict[str, RowMetrics]) -> list[Finding]:
         )
         failed = [text for text, v in checks if v is False]
         evidence = numbers + (f". Fails: {'; '.join(failed)}" if failed else "")
-        return Finding(claim=claim, holds=holds, evidence=evidence)
+        return Finding(claim=claim, configuration=configuration, holds=holds, evidence=evidence)
 
-    present = [k for k in _ABLATION_ROWS if k in results]
+    present = [k for k in ablation_rows if k in results]
+    no_mask_sync, no_pose_sync = key("roft_no_mask_sync"), key("roft_no_pose_sync")
     return [
         finding(
             "ROFT beats the 5 fps detector (DOPE) on ADD-AUC, e_t and e_a",
-            [better("roft", "detector", m) for m in pose_metrics],
-            ["roft", "detector"],
+            [better(roft, "detector", m) for m in pose_metrics],
+            [roft, "detector"],
             pose_metrics,
         ),
         finding(
@@ -385,24 +401,32 @@ def check_findings(results: dict[str, RowMetrics]) -> list[Finding]:
         ),
         finding(
             "removing mask sync hurts clearly (worse ADD-AUC, e_t, e_a, e_v and e_w)",
-            [better("roft", "roft_no_mask_sync", m) for m in (*pose_metrics, *velocity_metrics)],
-            ["roft", "roft_no_mask_sync"],
+            [better(roft, no_mask_sync, m) for m in (*pose_metrics, *velocity_metrics)],
+            [roft, no_mask_sync],
             (*pose_metrics, *velocity_metrics),
         ),
         finding(
             "removing pose sync raises the angular error e_a",
-            [better("roft", "roft_no_pose_sync", "rmse_a_deg")],
-            ["roft", "roft_no_pose_sync"],
+            [better(roft, no_pose_sync, "rmse_a_deg")],
+            [roft, no_pose_sync],
             ("rmse_a_deg",),
         ),
         finding(
             "with ground-truth inputs ROFT gets better (each GT row beats ROFT on ADD-AUC, e_t "
             "and e_a)",
-            [better(k, "roft", m) for k in _GT_ROWS for m in pose_metrics],
-            ["roft", *_GT_ROWS],
+            [better(k, roft, m) for k in gt_rows for m in pose_metrics],
+            [roft, *gt_rows],
             pose_metrics,
         ),
     ]
+
+
+def checked_configurations(results: dict[str, RowMetrics]) -> list[str]:
+    """The configurations whose findings and Table IV order a run reports: our default
+    (``roft``) always, the reference configuration (``roft_reference``) when any of its Table IV
+    rows ran."""
+    reference = [r.key for r in REFERENCE_ROWS if r.paper_label is not None]
+    return ["roft", *(["roft_reference"] if any(k in results for k in reference) else [])]
 
 
 _GT_ROWS = ("roft_gt_mask_pose", "roft_gt_pose", "roft_gt_mask")
@@ -445,22 +469,25 @@ def _table1(
 
 
 def _table2(
-    results: dict[str, RowMetrics], paper: PaperTables, entries: list[str]
+    results: dict[str, RowMetrics], rows: Sequence[PaperRow], paper: PaperTables, entries: list[str]
 ) -> tuple[list[Column], list[dict[str, Any]]]:
-    pairs = (("roft", "ROFT"), ("roft_no_mask_sync", "ROFT w/o segm. sync."))
+    """Per object and ALL, e_v and e_w of every Table II row that ran (our default's and the
+    reference configuration's, with and without mask sync), then the paper's columns."""
+    sim = [r for r in rows if "II" in r.tables and r.key in results]
     columns = [Column("entry", "object", align="left")]
     for metric, unit in (("rmse_v_cmps", "e_v cm/s"), ("rmse_w_dps", "e_w deg/s")):
-        for key, name in pairs:
-            columns.append(Column(f"sim:{key}:{metric}", f"{unit} {name} (sim)", ".2f"))
-        for _, name in pairs:
+        for r in sim:
+            columns.append(Column(f"sim:{r.key}:{metric}", f"{unit} {r.label} (sim)", ".2f"))
+        for name in paper.table2:
             columns.append(Column(f"paper:{name}:{metric}", f"{unit} {name} (paper)", ".2f"))
     table_rows = []
     for entry in entries:
         row: dict[str, Any] = {"entry": entry}
         for metric in ("rmse_v_cmps", "rmse_w_dps"):
-            for key, name in pairs:
-                row[f"sim:{key}:{metric}"] = results.get(key, {}).get(entry, {}).get(metric)
-                row[f"paper:{name}:{metric}"] = paper.table2[name][metric].get(entry)
+            for r in sim:
+                row[f"sim:{r.key}:{metric}"] = results[r.key].get(entry, {}).get(metric)
+            for name, metrics in paper.table2.items():
+                row[f"paper:{name}:{metric}"] = metrics[metric].get(entry)
         table_rows.append(row)
     return columns, table_rows
 
@@ -793,13 +820,14 @@ def write_paper_tables(
     objects_run = sorted({e for r in results.values() for e in r if e != ALL})
     entries = [o for o in paper.objects if o in objects_run]
     entries += [o for o in objects_run if o not in entries] + [ALL]
-    findings = check_findings(results)
+    configurations = checked_configurations(results)
+    findings = [f for c in configurations for f in check_findings(results, configuration=c)]
     md = [*header]
     tex = []
     md += [f"Every simulated number: {policy_note(PAPER_INVALID)}.", ""]
     md += ["## Table I: pose tracking (simulation vs paper)", ""]
     table1 = _table1(results, rows, paper, entries)
-    table2 = _table2(results, paper, entries)
+    table2 = _table2(results, rows, paper, entries)
     table4 = _table4(results, rows, paper)
     for i, (title, (cols, trs)) in enumerate(table1.items()):
         md += [f"### {title}", "", markdown_table(cols, trs)]
@@ -824,7 +852,7 @@ def write_paper_tables(
     for title, (cols, trs) in side_by_side_tables(results, paper, entries).items():
         md += [f"### {title}", "", markdown_table(cols, trs)]
     md += ["## Table IV: order of the nine ROFT rows (Kendall tau, paper vs sim)", ""]
-    for configuration in ("roft", "roft_reference"):
+    for configuration in configurations:
         if configuration not in results:
             continue
         md.append(f"Configuration `{configuration}`:")
@@ -845,10 +873,14 @@ def write_paper_tables(
         atomic_write_text(out / "attribution.csv", csv_table(cols, trs))
         tex.append(latex_table(cols, trs, caption="Deviations from the reference, one at a time"))
     md += ["## The paper's findings, checked", ""]
-    for f in findings:
-        verdict = {True: "holds", False: "DOES NOT HOLD", None: "not checked"}[f.holds]
-        md.append(f"- **{verdict}**: {f.claim}. ({f.evidence})")
-    md += ["", f"Paper numbers: {paper.source}."]
+    for configuration in configurations:
+        md.append(f"Configuration `{configuration}`:")
+        for f in findings:
+            if f.configuration == configuration:
+                verdict = {True: "holds", False: "DOES NOT HOLD", None: "not checked"}[f.holds]
+                md.append(f"- **{verdict}**: {f.claim}. ({f.evidence})")
+        md.append("")
+    md += [f"Paper numbers: {paper.source}."]
     path = out / "tables.md"
     atomic_write_text(path, "\n".join(md) + "\n")
     atomic_write_text(out / "tables.tex", "\n".join(tex))

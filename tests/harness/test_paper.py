@@ -14,6 +14,7 @@ from roft_sim.harness.paper import (
     REFERENCE_ROWS,
     attribution_table,
     check_findings,
+    checked_configurations,
     paper_rows,
     plan_paper,
 )
@@ -73,6 +74,50 @@ def test_each_finding_fails_when_its_numbers_say_so(key, metric, value, broken):
     assert holds[broken] is False
     assert sum(h is False for h in holds) == 1
     assert f"on {metric}" in findings[broken].evidence.split("Fails: ")[1]
+
+
+def _as_reference(results: dict) -> dict:
+    """The ROFT rows of ``results`` under the reference configuration's keys, the others as
+    they are."""
+    return {
+        (k.replace("roft", "roft_reference", 1) if k.startswith("roft") else k): v
+        for k, v in results.items()
+    }
+
+
+def test_the_reference_configuration_is_checked_on_its_own_rows():
+    results = _as_reference(_paper_results())
+    assert checked_configurations(results) == ["roft", "roft_reference"]
+    assert checked_configurations(_paper_results()) == ["roft"]
+    reference = check_findings(results, configuration="roft_reference")
+    assert [f.holds for f in reference] == [True] * 5
+    assert {f.configuration for f in reference} == {"roft_reference"}
+    assert "roft_reference: add_auc_pct 76.59" in reference[0].evidence
+    # our default's rows are absent from these results: not checked
+    assert [f.holds for f in check_findings(results)] == [None] * 5
+    # a reference row that breaks a finding fails it, and names the reference's row
+    results["roft_reference_no_outlier_rejection"][ALL]["add_auc_pct"] = 40.0
+    broken = check_findings(results, configuration="roft_reference")
+    assert [f.holds for f in broken] == [True, False, True, True, True]
+    assert "roft_reference_no_outlier_rejection" in broken[1].evidence.split("Fails: ")[1]
+
+
+def test_table2_shows_each_configuration_that_ran(tmp_path):
+    from roft_sim.harness.paper import REFERENCE_ROWS, write_paper_tables
+
+    both = {**_paper_results(), **_as_reference(_paper_results())}
+    for results in (_paper_results(), both):
+        for row in results.values():
+            row["003_cracker_box"] = dict(row[ALL])
+        rows = [r for r in (*PAPER_ROWS, *REFERENCE_ROWS) if r.key in results]
+        write_paper_tables(tmp_path, rows, results)
+        header = (tmp_path / "table2.csv").read_text().splitlines()[0]
+        columns = header.split(",")
+        assert "sim:roft:rmse_v_cmps" in columns and "paper:ROFT:rmse_v_cmps" in columns
+        reference = "sim:roft_reference:rmse_v_cmps" in columns
+        assert reference == (results is both)
+        tables = (tmp_path / "tables.md").read_text()
+        assert ("Configuration `roft_reference`:" in tables) == (results is both)
 
 
 def test_missing_rows_are_not_checked():
@@ -183,7 +228,9 @@ def test_reference_rows_mirror_the_roft_rows_and_the_attribution_chain_ends_at_t
     assert [r.paper_label for r in ref_rows] == [r.label for r in PAPER_ROWS if r.tracker == "roft"]
     assert {r.tracker for r in REFERENCE_ROWS} == {"roft-reference"}
     main_row = next(r for r in REFERENCE_ROWS if r.key == "roft_reference")
-    assert main_row.tables == ("I", "IV")
+    assert main_row.tables == ("I", "II", "IV")
+    no_mask_sync = next(r for r in REFERENCE_ROWS if r.key == "roft_reference_no_mask_sync")
+    assert no_mask_sync.tables == ("II", "IV")
     no_pose = next(r for r in REFERENCE_ROWS if r.key == "roft_reference_no_pose")
     assert RoftConfig(**_fields(_tracker_config(no_pose))) == ablation_config(
         "no_pose", reference_config()
