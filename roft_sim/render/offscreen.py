@@ -32,6 +32,7 @@ from numpy.typing import NDArray
 
 from roft_sim.errors import ConfigError
 from roft_sim.render.gl_backend import context_error
+from roft_sim.render.gl_contexts import SharedGlContext, acquire_gl_context, release_gl_context
 
 __all__ = ["OffscreenRenderer", "RenderBuffers", "z_depth_from_depth_buffer"]
 
@@ -91,7 +92,7 @@ class OffscreenRenderer:
     def __init__(
         self, model: mujoco.MjModel, width_px: int, height_px: int, *, max_geom: int = 2000
     ) -> None:
-        self._gl: mujoco.GLContext | None = None
+        self._gl: SharedGlContext | None = None
         self._ctx: mujoco.MjrContext | None = None
         buf_w, buf_h = model.vis.global_.offwidth, model.vis.global_.offheight
         if width_px > buf_w or height_px > buf_h:
@@ -104,10 +105,12 @@ class OffscreenRenderer:
         self._width, self._height = int(width_px), int(height_px)
         self._flat_ctx: mujoco.MjrContext | None = None
         try:
-            self._gl = mujoco.GLContext(self._width, self._height)
-            self._gl.make_current()
+            # the thread's context of this size, shared with its other renderers (its first
+            # MjrContext pays llvmpipe's per-context costs: roft_sim.render.gl_contexts)
+            self._gl = acquire_gl_context(self._width, self._height)
             self._ctx = self._make_context(model)
         except (mujoco.FatalError, RuntimeError, AttributeError) as e:
+            self.close()
             raise context_error(e) from e
         self._scene = mujoco.MjvScene(model, maxgeom=max_geom)
         self._option = mujoco.MjvOption()
@@ -315,7 +318,8 @@ class OffscreenRenderer:
         return labels
 
     def close(self) -> None:
-        """Frees the OpenGL resources (idempotent)."""
+        """Frees this renderer's OpenGL resources and releases its thread's context, which is
+        kept for the thread's next renderer (``roft_sim.render.gl_contexts``; idempotent)."""
         if self._ctx is not None and self._gl is not None:
             self._gl.make_current()
             if self._flat_ctx is not None:
@@ -323,7 +327,7 @@ class OffscreenRenderer:
             self._ctx.free()
         self._ctx = self._flat_ctx = None
         if self._gl is not None:
-            self._gl.free()
+            release_gl_context(self._gl)
         self._gl = None
 
     def __enter__(self) -> OffscreenRenderer:
