@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roft_sim.datasets.atomic_files import atomic_write_bytes, atomic_write_text
-from roft_sim.datasets.fast_ycb_codec import format_row, parse_rows
+from roft_sim.datasets.fast_ycb_codec import format_rows, parse_rows
 from roft_sim.datasets.image_files import read_file_bytes
 from roft_sim.errors import DatasetFormatError, located
 
@@ -49,7 +49,7 @@ _OUR_PLY_LAYOUT = [
 
 def write_points_xyz(path: Path, points_m: F64) -> None:
     """Writes ``(M, 3)`` model points [m], one ``x y z`` row each."""
-    atomic_write_text(path, "".join(format_row(p) + "\n" for p in np.asarray(points_m)))
+    atomic_write_text(path, format_rows(points_m))
 
 
 def read_points_xyz(path: Path) -> F64:
@@ -64,7 +64,7 @@ def read_points_xyz(path: Path) -> F64:
 def write_mesh_obj(path: Path, vertices_m: F64, faces: NDArray[np.int64]) -> None:
     """Writes a Wavefront OBJ with vertices [m] and 1-based triangle faces."""
     lines = ["# roft_sim object mesh, object frame, metres\n"]
-    lines += ["v " + format_row(v) + "\n" for v in np.asarray(vertices_m)]
+    lines += ["v " + row + "\n" for row in format_rows(vertices_m).splitlines()]
     lines += [f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in np.asarray(faces)]
     atomic_write_text(path, "".join(lines))
 

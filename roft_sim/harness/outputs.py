@@ -45,7 +45,7 @@ from numpy.typing import NDArray
 
 from roft_sim.datasets.atomic_files import atomic_write_bytes, atomic_write_text
 from roft_sim.datasets.fast_ycb_codec import (
-    format_row,
+    format_rows,
     parse_rows,
     pose_row_from_transform,
     transforms_from_pose_rows,
@@ -197,7 +197,7 @@ def velocity_estimate_rows(
 
 
 def _write_rows(path: Path, rows: F64) -> None:
-    atomic_write_text(path, "".join(format_row(r) + "\n" for r in rows))
+    atomic_write_text(path, format_rows(rows))
 
 
 def read_pose_estimate(path: str | Path) -> tuple[F64, F64, F64, NDArray[np.bool_]]:
@@ -435,7 +435,7 @@ def tum_text(t_s: F64, T_cam_obj: F64) -> str:
         raise ValueError(f"need (N,) times and (N, 4, 4) poses, got {t_s.shape} and {T.shape}")
     q = canonical_quat(quat_from_matrix(T[:, :3, :3])) if len(T) else np.zeros((0, 4))
     rows = np.hstack([t_s[:, None], T[:, :3, 3], quat_xyzw_from_wxyz(q).reshape(-1, 4)])
-    return "# timestamp tx ty tz qx qy qz qw\n" + "".join(format_row(r) + "\n" for r in rows)
+    return "# timestamp tx ty tz qx qy qz qw\n" + format_rows(rows)
 
 
 def write_tum_files(folder: str | Path, run: SequenceRun) -> tuple[Path, ...]:

@@ -54,7 +54,7 @@ from numpy.typing import NDArray
 from roft_sim.assets.registry import FAST_YCB_OBJECTS
 from roft_sim.datasets.atomic_files import atomic_write_text
 from roft_sim.datasets.base import Sequence as DatasetSequence
-from roft_sim.datasets.fast_ycb_codec import encode_cam_k_json, format_row, pose_row_from_transform
+from roft_sim.datasets.fast_ycb_codec import encode_cam_k_json, format_rows, pose_row_from_transform
 from roft_sim.datasets.model_files import write_points_xyz
 from roft_sim.errors import ConfigError
 from roft_sim.harness.outputs import pose_estimate_rows, velocity_estimate_rows
@@ -175,7 +175,7 @@ def check_reference_objects(object_names: Sequence[str]) -> None:
 
 def _write_rows(path: Path, rows: F64) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(path, "".join(format_row(r) + "\n" for r in rows))
+    atomic_write_text(path, format_rows(rows))
 
 
 def _pose_rows(T: F64) -> F64:

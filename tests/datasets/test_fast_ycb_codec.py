@@ -9,7 +9,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
@@ -26,6 +26,7 @@ from roft_sim.datasets.fast_ycb_codec import (
     flow_grid_px,
     format_number,
     format_row,
+    format_rows,
     parse_rows,
     pose_row_from_transform,
     transforms_from_pose_rows,
@@ -108,6 +109,27 @@ def test_format_number_reads_back_exactly(x):
 def test_format_number_refuses_nan():
     with pytest.raises(ValueError, match="non-finite"):
         format_number(float("nan"))
+
+
+@settings(max_examples=200, derandomize=True)
+@given(
+    st.lists(
+        st.lists(st.floats(allow_nan=False, allow_infinity=False), min_size=3, max_size=3),
+        max_size=12,
+    )
+)
+def test_format_rows_writes_what_format_row_writes_row_by_row(rows):
+    expected = "".join(format_row(r) + "\n" for r in rows)
+    assert format_rows(np.array(rows, dtype=np.float64).reshape(-1, 3)) == expected
+
+
+def test_format_rows_refuses_non_finite_numbers_and_other_shapes():
+    assert format_rows(np.zeros((2, 0))) == "\n\n"
+    assert format_rows([[0.0, -0.0, 1e-05], [2.5, -3.0, 1e16]]) == "0 0 1e-05\n2.5 -3 1e+16\n"
+    with pytest.raises(ValueError, match=r"non-finite number inf \(row 1, column 0\)"):
+        format_rows([[1.0, 2.0], [np.inf, 0.0]])
+    with pytest.raises(ValueError, match=r"shape \(3,\)"):
+        format_rows([1.0, 2.0, 3.0])
 
 
 def test_parse_rows_names_the_line():
