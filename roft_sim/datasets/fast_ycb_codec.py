@@ -228,7 +228,8 @@ def format_row(values: Iterable[float]) -> str:
 def format_rows(rows: ArrayLike) -> str:
     """Whole rows of numbers as text: one line per row, each as :func:`format_row` writes it and
     ended by a newline; the same text as joining :func:`format_row` row by row, formatted in one
-    pass (a 2620-point ``points.xyz`` in about 3 ms instead of 40).
+    pass (a 2620-point ``points.xyz`` in 15 ms instead of 23:
+    the shortest-repr formatting itself is most of what is left).
 
     Args:
         rows: (N, M) numbers (anything ``numpy.asarray`` reads as float64).
@@ -251,7 +252,7 @@ def format_rows(rows: ArrayLike) -> str:
         "0" if r in ("0.0", "-0.0") else r[:-2] if r.endswith(".0") else r
         for r in map(repr, a.ravel().tolist())
     ]
-    n, m = a.shape
+    n, m = int(a.shape[0]), int(a.shape[1])
     if m == 0:
         return "\n" * n
     return "".join(" ".join(texts[k : k + m]) + "\n" for k in range(0, n * m, m))

@@ -1,6 +1,7 @@
 """Offscreen rendering of one MuJoCo camera: rgb, z-depth and per-geom segmentation.
 
-A thin layer over MuJoCo's OpenGL renderer (``mujoco.GLContext``, ``MjrContext``, ``MjvScene``)
+A thin layer over MuJoCo's OpenGL renderer (``MjrContext``, ``MjvScene``; the OpenGL context is
+the thread's shared one, :mod:`roft_sim.render.gl_contexts`)
 that, unlike ``mujoco.Renderer``, reads rgb and depth from ONE render pass, converts MuJoCo's
 reversed-Z depth buffer to z-depth in metres (0 = nothing) here and nowhere else, and returns
 segmentation as geom ids (-1 = background).
