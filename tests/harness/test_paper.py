@@ -186,7 +186,9 @@ def test_full_paper_run_at_640x480_with_short_sequences(tmp_path, capsys):
     args = ["paper", "--out", str(out), "--resolution", "640x480", "--frames", "24"]
     assert main([*args, "--workers", "2", "--no-progress", "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
-    assert len(summary["findings"]) == 5
+    # five findings for our default and five for the reference configuration, on its own rows
+    configurations = [f["configuration"] for f in summary["findings"]]
+    assert configurations == ["roft"] * 5 + ["roft_reference"] * 5
     assert all(f["holds"] in (True, False) for f in summary["findings"])
     record = json.loads((out / "paper.json").read_text())
     assert record["dataset"]["generated"] and record["dataset"]["frames_generated"] == 6 * 24
