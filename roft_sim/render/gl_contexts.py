@@ -3,7 +3,7 @@
 Mesa's llvmpipe (the CPU OpenGL that CI and most headless machines render with) pays part of its
 work once per OpenGL context: on the 640x480 Fast-YCB scene, the first ``MjrContext`` made in a
 fresh context (the model's textures uploaded and mipmapped) takes 0.23-0.41 s and a later one in
-the same context 0.06-0.08 s, and the first frame drawn 0.07-0.15 s against 0.03-0.07 s
+the same context 0.06-0.12 s, and the first frame drawn 0.07-0.15 s against 0.03-0.07 s
 (docs/rendering.md). So :class:`~roft_sim.render.offscreen.OffscreenRenderer` does not make a
 context of its own: it draws in its thread's context of its image size, which it acquires here
 and releases when closed. A context stays while a renderer uses it and, once none does, is kept
