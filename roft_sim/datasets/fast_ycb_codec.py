@@ -209,15 +209,20 @@ def decode_flow_float(data: bytes, path: str | Path) -> tuple[F32, int]:
     return flow, int(cv_type)
 
 
+def _number_text(shortest: str) -> str:
+    """A finite float's text from its ``repr`` (the shortest text that reads back to the same
+    float64): ``1.0`` -> ``1``, ``-0.0`` -> ``0``."""
+    if shortest in ("0.0", "-0.0"):
+        return "0"
+    return shortest[:-2] if shortest.endswith(".0") else shortest
+
+
 def format_number(x: float) -> str:
     """Shortest text that reads back to the same float64; ``1.0`` -> ``1``, ``-0.0`` -> ``0``."""
     x = float(x)
     if not math.isfinite(x):
         raise ValueError(f"cannot write the non-finite number {x} to a dataset text file")
-    if x == 0.0:
-        return "0"
-    s = repr(x)
-    return s[:-2] if s.endswith(".0") else s
+    return _number_text(repr(x))
 
 
 def format_row(values: Iterable[float]) -> str:
@@ -247,11 +252,7 @@ def format_rows(rows: ArrayLike) -> str:
             f"cannot write the non-finite number {a[i, j]} (row {i}, column {j}) to a dataset "
             "text file"
         )
-    # repr is the shortest text that reads back to the same float64 (as in format_number)
-    texts = [
-        "0" if r in ("0.0", "-0.0") else r[:-2] if r.endswith(".0") else r
-        for r in map(repr, a.ravel().tolist())
-    ]
+    texts = list(map(_number_text, map(repr, a.ravel().tolist())))
     n, m = int(a.shape[0]), int(a.shape[1])
     if m == 0:
         return "\n" * n
