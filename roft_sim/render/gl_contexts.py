@@ -35,11 +35,6 @@ class SharedGlContext:
 
     context: mujoco.GLContext
     """MuJoCo's context (EGL or OSMesa, as ``MUJOCO_GL`` chose)."""
-    width_px: int
-    height_px: int
-    """The size it was made for (OSMesa's buffer; EGL's contexts have none)."""
-    process_id: int
-    """The process that made it."""
     users: int = field(default=0)
     """Renderers that acquired it and have not released it."""
 
@@ -52,7 +47,8 @@ _THREAD = threading.local()
 
 
 def _contexts() -> dict[tuple[int, int, int], SharedGlContext]:
-    """This thread's contexts by (process id, width, height)."""
+    """This thread's contexts by (id of the process that made it, width, height); the size is
+    OSMesa's buffer (EGL's contexts have none)."""
     contexts: dict[tuple[int, int, int], SharedGlContext] | None = getattr(
         _THREAD, "contexts", None
     )
@@ -75,7 +71,7 @@ def acquire_gl_context(width_px: int, height_px: int) -> SharedGlContext:
     shared = contexts.get(key)
     if shared is None:
         free_idle_gl_contexts()
-        shared = SharedGlContext(mujoco.GLContext(key[1], key[2]), key[1], key[2], key[0])
+        shared = SharedGlContext(mujoco.GLContext(key[1], key[2]))
         contexts[key] = shared
     shared.users += 1
     shared.make_current()
@@ -93,7 +89,7 @@ def free_idle_gl_contexts() -> int:
     """Frees this thread's contexts that no renderer uses; returns how many were freed."""
     pid = os.getpid()
     contexts = _contexts()
-    idle = [k for k, c in contexts.items() if c.users == 0 and c.process_id == pid]
+    idle = [k for k, c in contexts.items() if c.users == 0 and k[0] == pid]
     for key in idle:
         contexts.pop(key).context.free()
     return len(idle)
