@@ -59,6 +59,8 @@ __all__ = [
     "check_findings",
     "checked_configurations",
     "Finding",
+    "PerObjectMotion",
+    "per_object_motion",
 ]
 
 PAPER_FAULTS = "paper"
@@ -792,6 +794,98 @@ def attribution_table(
     return columns, table_rows
 
 
+_STALE_MASK_PAPER_ROW = "ROFT w/o segm. sync."
+"""The paper's Table II column of ROFT fed the masks as they arrive (6-12 frames old)."""
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class PerObjectMotion:
+    """Per object, the configuration's ADD-AUC against the paper's, next to how much larger the
+    paper's velocity errors are than the simulation's (:func:`per_object_motion`)."""
+
+    configuration: str
+    """The key of the configuration's plain ROFT row (``roft``, ``roft_reference``)."""
+    columns: list[Column]
+    rows: list[dict[str, Any]]
+    """One per object and ALL: ``add_gap`` (sim - paper ADD-AUC points of the plain row) and
+    ``<row>:<metric>`` = paper / sim for ``row`` in (``roft``, ``stale_masks``) and ``metric`` in
+    (``rmse_v_cmps``, ``rmse_w_dps``); None where a number is missing."""
+    rank_correlation: float | None
+    """Spearman's rank correlation over the objects (not ALL) between ``add_gap`` and the
+    stale-mask e_v ratio; None with fewer than 3 objects having both, or either constant."""
+
+
+def per_object_motion(
+    results: dict[str, RowMetrics],
+    paper: PaperTables,
+    entries: Sequence[str],
+    *,
+    configuration: str = "roft_reference",
+) -> PerObjectMotion | None:
+    """Reads, per object, whether the paper's sequence of that object moved faster than the
+    simulated one, from a row that measures motion more than anything else: ROFT with the masks
+    as they arrive (``<configuration>_no_mask_sync``, the paper's "w/o segm. sync."). Its
+    velocity is read from flow on a mask 6-12 frames old, so its error grows with how far the
+    object moves in that delay (docs/paper.md, "Round 19", measures the growth); the object,
+    its size and the networks are the same in both, so a paper / sim ratio of its e_v or e_w
+    above 1 says the paper's sequence moved faster relative to its size than ours. Put next to
+    the plain row's ADD-AUC gap, the ratios say how much of a per-object difference follows the
+    motion, which a simulator drawing one motion distribution for every object cannot reproduce.
+
+    Args:
+        results: per row key, per entry, the metrics.
+        paper: the published numbers (Table I ROFT, Table II both columns).
+        entries: objects then ``ALL``, in the order of the other tables.
+        configuration: the key of the configuration's plain ROFT row.
+
+    Returns:
+        The table, or None when the configuration's plain or stale-mask row did not run.
+    """
+    from scipy.stats import spearmanr
+
+    stale = f"{configuration}_no_mask_sync"
+    if configuration not in results or stale not in results:
+        return None
+    sources = (("roft", configuration, "ROFT"), ("stale_masks", stale, _STALE_MASK_PAPER_ROW))
+    columns = [
+        Column("entry", "object", align="left"),
+        Column("add_gap", f"ADD-AUC sim - paper ({configuration})", "+.2f"),
+    ]
+    for name, _, label in sources:
+        for metric, unit in (("rmse_v_cmps", "e_v"), ("rmse_w_dps", "e_w")):
+            columns.append(Column(f"{name}:{metric}", f"{unit} paper / sim ({label})", ".2f"))
+    rows: list[dict[str, Any]] = []
+    for entry in entries:
+        sim_add = results[configuration].get(entry, {}).get("add_auc_pct")
+        paper_add = paper.table1["ROFT"]["add_auc_pct"].get(entry)
+        row: dict[str, Any] = {
+            "entry": entry,
+            "add_gap": None if sim_add is None or paper_add is None else sim_add - paper_add,
+        }
+        for name, key, label in sources:
+            for metric in ("rmse_v_cmps", "rmse_w_dps"):
+                sim = results[key].get(entry, {}).get(metric)
+                ref = paper.table2.get(label, {}).get(metric, {}).get(entry)
+                row[f"{name}:{metric}"] = (
+                    None if sim is None or ref is None or sim <= 0 else ref / sim
+                )
+        rows.append(row)
+    pairs = [
+        (r["add_gap"], r["stale_masks:rmse_v_cmps"])
+        for r in rows
+        if r["entry"] != ALL
+        and r["add_gap"] is not None
+        and r["stale_masks:rmse_v_cmps"] is not None
+    ]
+    rho = None
+    gaps, ratios = zip(*pairs, strict=True) if pairs else ((), ())
+    if len(pairs) >= 3 and len(set(gaps)) > 1 and len(set(ratios)) > 1:  # else undefined
+        rho = float(spearmanr(gaps, ratios).statistic)
+    return PerObjectMotion(
+        configuration=configuration, columns=columns, rows=rows, rank_correlation=rho
+    )
+
+
 @dataclass(frozen=True, slots=True, kw_only=True)
 class PaperResult:
     """What :func:`run_paper` produced."""
@@ -806,6 +900,13 @@ class PaperResult:
     """``tables.md``."""
 
 
+def _table_entries(results: dict[str, RowMetrics], paper: PaperTables) -> list[str]:
+    """The objects that ran, the paper's first in its order, then ``ALL``."""
+    objects_run = sorted({e for r in results.values() for e in r if e != ALL})
+    entries = [o for o in paper.objects if o in objects_run]
+    return entries + [o for o in objects_run if o not in entries] + [ALL]
+
+
 def write_paper_tables(
     out: Path,
     rows: Sequence[PaperRow],
@@ -814,12 +915,12 @@ def write_paper_tables(
     header: Sequence[str] = (),
 ) -> tuple[Path, list[Finding]]:
     """Writes ``tables.md``, ``table1_*.csv``, ``table2.csv``, ``table4.csv``, ``tables.tex``,
-    the tables as figures (``table1.png``, ``table2.png``, ``table4.png``) and returns the path of
-    ``tables.md`` and the findings."""
+    the tables as figures (``table1.png``, ``table2.png``, ``table4.png``),
+    ``per_object_motion_<configuration>.csv`` for each configuration whose plain and stale-mask
+    rows ran (:func:`per_object_motion`), and returns the path of ``tables.md`` and the
+    findings."""
     paper = paper_tables()
-    objects_run = sorted({e for r in results.values() for e in r if e != ALL})
-    entries = [o for o in paper.objects if o in objects_run]
-    entries += [o for o in objects_run if o not in entries] + [ALL]
+    entries = _table_entries(results, paper)
     configurations = checked_configurations(results)
     findings = [f for c in configurations for f in check_findings(results, configuration=c)]
     md = [*header]
@@ -872,6 +973,34 @@ def write_paper_tables(
         ]
         atomic_write_text(out / "attribution.csv", csv_table(cols, trs))
         tex.append(latex_table(cols, trs, caption="Deviations from the reference, one at a time"))
+    motions = [
+        m
+        for c in configurations
+        if (m := per_object_motion(results, paper, entries, configuration=c)) is not None
+    ]
+    if motions:
+        md += [
+            "## Per object: does the difference follow the motion? (paper / sim velocity errors)",
+            "",
+            "ROFT fed the masks as they arrive (w/o segm. sync.) reads its velocity from flow on "
+            "a mask 6-12 frames old, so its velocity error grows with how far the object moves "
+            "in that delay; a paper / sim ratio above 1 says the paper's sequence of that object "
+            "moved faster relative to its size than the simulated one. Rank correlation: "
+            "Spearman's, over the objects, between the ADD-AUC difference and the stale-mask e_v "
+            "ratio.",
+            "",
+        ]
+        for motion in motions:
+            rho = "n/a" if motion.rank_correlation is None else f"{motion.rank_correlation:+.2f}"
+            md += [
+                f"Configuration `{motion.configuration}` (rank correlation {rho}):",
+                "",
+                markdown_table(motion.columns, motion.rows),
+            ]
+            atomic_write_text(
+                out / f"per_object_motion_{motion.configuration}.csv",
+                csv_table(motion.columns, motion.rows),
+            )
     md += ["## The paper's findings, checked", ""]
     for configuration in configurations:
         md.append(f"Configuration `{configuration}`:")
@@ -919,6 +1048,13 @@ def run_paper(
     records = execute_cells(cells, out / CELLS_DIR, executor=executor, progress=progress)
     results = paper_metrics(cells, records, out / CELLS_DIR)
     tables, findings = write_paper_tables(out, rows, results, header=header)
+    paper = paper_tables()
+    motions = {
+        c: {"rows": m.rows, "rank_correlation": m.rank_correlation}
+        for c in checked_configurations(results)
+        if (m := per_object_motion(results, paper, _table_entries(results, paper), configuration=c))
+        is not None
+    }
     write_json(
         out / "paper.json",
         {
@@ -931,6 +1067,7 @@ def run_paper(
             "cells": [c.cell_id for c in cells],
             "results": results,
             "findings": [dataclasses.asdict(f) for f in findings],
+            "per_object_motion": motions,
             "cell_wall_s": sum(float(r.get("wall_s", 0.0)) for r in records.values()),
             **jsonable(extra or {}),
         },

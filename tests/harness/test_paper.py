@@ -150,11 +150,12 @@ def test_plan_uses_the_ablation_configs_and_the_paper_faults(tmp_path):
 def test_paper_cli_on_a_reused_dataset(tmp_path, capsys):
     dataset = write_box_dataset(tmp_path / "data")
     out = tmp_path / "paper"
-    rows = "detector,detector_ideal,roft_no_velocity,roft_no_pose"
+    rows = "detector,detector_ideal,roft_no_velocity,roft_no_pose,roft,roft_no_mask_sync"
     args = ["paper", "--out", str(out), "--reuse", str(dataset), "--rows", rows, "--no-plugins"]
     assert main([*args, "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
-    assert [f["holds"] for f in summary["findings"]] == [None] * 5
+    # checked where their rows ran: not the pose-sync and ground-truth findings
+    assert [f["holds"] is None for f in summary["findings"]] == [False, False, False, True, True]
     tables = (out / "tables.md").read_text()
     assert "## Table I" in tables and "## Table IV" in tables
     assert "| DOPE | " in tables and "| ROFT w/o pose |" in tables
@@ -163,6 +164,12 @@ def test_paper_cli_on_a_reused_dataset(tmp_path, capsys):
     record = json.loads((out / "paper.json").read_text())
     assert set(record["results"]) == set(rows.split(","))
     assert record["results"]["detector"]["analytic_box"]["frames"] > 0
+    # the per-object motion table: the box is not a paper object, so only ALL has ratios
+    motion = record["per_object_motion"]["roft"]
+    assert [r["entry"] for r in motion["rows"]] == ["analytic_box", ALL]
+    assert motion["rows"][0]["add_gap"] is None and motion["rank_correlation"] is None
+    assert motion["rows"][1]["stale_masks:rmse_v_cmps"] > 0
+    assert (out / "per_object_motion_roft.csv").is_file()
     # resumable: a second call reuses every cell
     assert main([*args, "--resume", "--json"]) == 0
     capsys.readouterr()
@@ -201,6 +208,11 @@ def test_full_paper_run_at_640x480_with_short_sequences(tmp_path, capsys):
     table4 = (out / "table4.csv").read_text().splitlines()
     assert len(table4) == 1 + len([r for r in paper_rows() if "IV" in r.tables])
     assert (out / "attribution.csv").exists()
+    # both configurations ran their plain and stale-mask rows: a motion table each, six objects
+    motion = record["per_object_motion"]
+    assert set(motion) == {"roft", "roft_reference"}
+    assert all(isinstance(m["rank_correlation"], float) for m in motion.values())
+    assert (out / "per_object_motion_roft_reference.csv").exists()
 
 
 def test_paper_cli_checks_its_arguments_before_touching_the_output(tmp_path, capsys):
@@ -266,3 +278,79 @@ def test_attribution_table_chains_the_changes():
     assert rows[-1]["d:add_auc_pct"] == pytest.approx(80.0 - (50.0 + len(DEVIATIONS) - 1))
     assert sum(r["d:add_auc_pct"] for r in rows[1:]) == pytest.approx(30.0)
     assert attribution_table({"detector": entry(1.0)})[1] == []
+
+
+def _per_object_results(paper, scale_v: dict[str, float], add_gap: dict[str, float]) -> dict:
+    """Reference rows with the paper's per-object numbers: ROFT's ADD-AUC moved by
+    ``add_gap[object]`` points and every velocity error divided by ``scale_v[object]`` (so the
+    paper / sim ratio is ``scale_v``)."""
+    objects = list(scale_v)
+    reference: dict = {}
+    stale: dict = {}
+    for entry in [*objects, ALL]:
+        k = scale_v.get(entry, 2.0)
+        reference[entry] = {
+            "add_auc_pct": paper.table1["ROFT"]["add_auc_pct"][entry] + add_gap.get(entry, 0.0),
+            **{m: v[entry] / k for m, v in paper.table2["ROFT"].items()},
+        }
+        stale[entry] = {m: v[entry] / k for m, v in paper.table2["ROFT w/o segm. sync."].items()}
+    return {"roft_reference": reference, "roft_reference_no_mask_sync": stale}
+
+
+def test_per_object_motion_reads_paper_over_sim_velocity_errors_next_to_the_add_gap():
+    from scipy.stats import spearmanr
+
+    from roft_sim.harness.paper import per_object_motion
+
+    paper = paper_tables()
+    objects = paper.objects
+    scale_v = dict(zip(objects, [0.5, 0.8, 1.5, 1.2, 2.5, 2.0], strict=True))
+    add_gap = dict(zip(objects, [-1.0, 0.5, 9.0, 6.0, 7.0, 9.5], strict=True))
+    results = _per_object_results(paper, scale_v, add_gap)
+    motion = per_object_motion(results, paper, [*objects, ALL])
+    assert motion is not None and motion.configuration == "roft_reference"
+    by_entry = {r["entry"]: r for r in motion.rows}
+    for o in objects:
+        assert by_entry[o]["add_gap"] == pytest.approx(add_gap[o])
+        for column in ("roft", "stale_masks"):
+            for metric in ("rmse_v_cmps", "rmse_w_dps"):
+                assert by_entry[o][f"{column}:{metric}"] == pytest.approx(scale_v[o])
+    assert by_entry[ALL]["stale_masks:rmse_v_cmps"] == pytest.approx(2.0)
+    expected = spearmanr([add_gap[o] for o in objects], [scale_v[o] for o in objects]).statistic
+    assert motion.rank_correlation == pytest.approx(expected)
+    assert motion.rank_correlation == pytest.approx(1 - 6 * (1 + 4 + 1) / (6 * 35))  # sum d^2 = 6
+    # the gap falling as the motion ratio rises: a negative correlation
+    reversed_gap = {o: -g for o, g in add_gap.items()}
+    reversed_motion = per_object_motion(
+        _per_object_results(paper, scale_v, reversed_gap), paper, [*objects, ALL]
+    )
+    assert reversed_motion is not None and reversed_motion.rank_correlation == pytest.approx(
+        -expected
+    )
+
+
+def test_per_object_motion_needs_both_rows_and_three_objects(tmp_path):
+    from roft_sim.harness.paper import per_object_motion, write_paper_tables
+
+    paper = paper_tables()
+    objects = paper.objects
+    results = _per_object_results(paper, dict.fromkeys(objects, 1.0), {})
+    assert per_object_motion(results, paper, [*objects, ALL], configuration="roft") is None
+    constant = per_object_motion(results, paper, [*objects, ALL])  # every ratio 1: undefined
+    assert constant is not None and constant.rank_correlation is None
+    without_stale = {"roft_reference": results["roft_reference"]}
+    assert per_object_motion(without_stale, paper, [*objects, ALL]) is None
+    two = {k: {e: v[e] for e in (*objects[:2], ALL)} for k, v in results.items()}
+    motion = per_object_motion(two, paper, [*objects[:2], ALL])
+    assert motion is not None and motion.rank_correlation is None
+    # tables.md and the CSV carry the section only when the rows ran
+    rows = [r for r in REFERENCE_ROWS if r.key in results]
+    write_paper_tables(tmp_path, rows, results)
+    assert (
+        "## Per object: does the difference follow the motion?"
+        in (tmp_path / "tables.md").read_text()
+    )
+    csv = (tmp_path / "per_object_motion_roft_reference.csv").read_text().splitlines()
+    assert csv[0].split(",")[:2] == ["entry", "add_gap"] and len(csv) == len(objects) + 2
+    write_paper_tables(tmp_path / "none", rows[:1], without_stale)
+    assert "does the difference follow" not in (tmp_path / "none" / "tables.md").read_text()
