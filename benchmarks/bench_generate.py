@@ -7,10 +7,13 @@ R-CNN-like masks) at each resolution (intrinsics scaled), written as fast-ycb by
 asset cache that the first (unmeasured) run fills, as ``roft-sim generate``'s default cache is
 after its first run.
 
-Every measurement runs in a fresh process; with ``--baseline-ref REF [REF ...]`` the same
-measurement also runs on the package as it was at each git commit REF (extracted with ``git
-archive``), interleaved with the current one (baseline, ..., now, baseline, ..., now), so that all
-see the same machine load; the table prints medians and the ratio now / each baseline. Rows:
+Every measurement runs in a fresh process, with the package's bytecode compiled beforehand (as
+pip leaves an installed package; with ``PYTHONDONTWRITEBYTECODE`` set, every fresh process would
+otherwise compile the modules it imports: 0.07-0.1 s of a short run's start-up). With
+``--baseline-ref REF [REF ...]`` the same measurement also runs on the package as it was at each
+git commit REF (extracted with ``git archive``), interleaved with the current one (baseline, ...,
+now, baseline, ..., now), so that all see the same machine load; the table prints medians and
+the ratio now / each baseline. Rows:
 
 - ``render+seg+flow``: :class:`SceneRenderer` with segmentation plus exact ground-truth flow from
   the previous frame, frames/s over N frames (what ``bench_render.py``'s ``+seg+flow`` mode
@@ -59,6 +62,7 @@ baseline must know the spec.
 from __future__ import annotations
 
 import argparse
+import compileall
 import dataclasses
 import json
 import os
@@ -488,6 +492,8 @@ def main() -> None:
     try:
         now = Tree(label="now", pythonpath=REPO, cache=scratch / "cache_now")
         trees = [*(baseline_tree(ref, scratch) for ref in args.baseline_ref), now]
+        for tree in trees:  # as an installed package is: a fresh process reads bytecode
+            compileall.compile_dir(tree.pythonpath / "roft_sim", quiet=1)
         if not args.skip_throughput:
             throughput(args, trees)
         if not args.skip_memory:
