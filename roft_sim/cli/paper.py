@@ -1,6 +1,7 @@
 """``roft-sim paper``: the ROFT paper's Fast-YCB Tables I, II and IV in simulation.
 
-    roft-sim paper --out DIR [--resolution 640x480] [--frames N] [--flow SPEC] [--reuse DATASET]
+    roft-sim paper --out DIR [--resolution 640x480] [--frames N] [--motion FAST_YCB_DIR]
+                   [--flow SPEC] [--reuse DATASET]
 
 Generates the six Fast-YCB-like sequences (``roft-sim generate --preset fast-ycb``) into
 ``DIR/dataset`` (or reuses a dataset), runs every row and writes the tables beside the paper's
@@ -44,6 +45,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "  roft-sim paper --out paper/full                      # 1280x720, 880 frames\n"
         "  roft-sim paper --out paper/small --resolution 640x480 --frames 300 --workers 2\n"
         "  roft-sim paper --out paper/dis --reuse paper/small/dataset --flow dis\n"
+        "  roft-sim paper --out paper/motion --motion /data/fast-ycb   # Fast-YCB's own motion\n"
         "  roft-sim paper --out paper/small --resume            # after an interruption\n"
         "\nexit codes: 0 done, 1 runtime error, 2 bad arguments or output, 130 interrupted",
     )
@@ -61,6 +63,14 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         type=Path,
         metavar="DATASET_DIR",
         help="use this Fast-YCB-like dataset (ours or the real Fast-YCB) instead of generating",
+    )
+    parser.add_argument(
+        "--motion",
+        type=Path,
+        metavar="FAST_YCB_DIR",
+        help="move each object along its own sequence's captured motion in this Fast-YCB "
+        "dataset (<DIR>/<object>/gt/poses.txt, e.g. the real Fast-YCB) instead of the preset's "
+        "synthetic motion; not with --reuse",
     )
     parser.add_argument(
         "--flow",
@@ -104,16 +114,14 @@ def _generate(args: argparse.Namespace, out: Path, progress: bool) -> tuple[Path
         ScenarioOverrides,
         generate_dataset,
         parse_resolution,
-        preset_scenario_paths,
     )
     from roft_sim.render.gl_backend import require_gl_backend
-    from roft_sim.scenario import load_scenario
 
     overrides = ScenarioOverrides(
         frames=args.frames,
         resolution=None if args.resolution is None else parse_resolution(args.resolution),
     )
-    scenarios = [load_scenario(p) for p in preset_scenario_paths("fast-ycb")]
+    scenarios = _preset_scenarios(args.motion)
     for scenario in scenarios:
         overrides.apply(scenario)
     assets = assets_dir_from_args(args)
@@ -141,8 +149,30 @@ def _generate(args: argparse.Namespace, out: Path, progress: bool) -> tuple[Path
         "generation_wall_s": round(time.perf_counter() - t0, 1),
         "resolution": args.resolution or "preset (1280x720)",
         "frames": args.frames or "preset (880)",
+        "motion": "preset" if args.motion is None else str(args.motion),
     }
     return dataset, info
+
+
+def _preset_scenarios(motion: Path | None) -> list[Any]:
+    """The ``fast-ycb`` preset's scenarios, each replaying its object's motion from the Fast-YCB
+    dataset ``motion`` when given (:func:`~roft_sim.generation.with_fast_ycb_motion`).
+
+    Raises:
+        ConfigError: ``motion`` is not a folder, lacks an object's poses, or one is malformed.
+    """
+    from roft_sim.generation import preset_scenario_paths, with_fast_ycb_motion
+    from roft_sim.scenario import load_scenario
+
+    scenarios = [load_scenario(p) for p in preset_scenario_paths("fast-ycb")]
+    if motion is None:
+        return scenarios
+    if not motion.is_dir():
+        raise ConfigError(f"--motion {str(motion)!r} is not a folder; give a Fast-YCB dataset root")
+    try:
+        return [with_fast_ycb_motion(s, motion) for s in scenarios]
+    except DatasetFormatError as e:
+        raise ConfigError(f"--motion: {e}") from None
 
 
 def _print_result(
@@ -185,6 +215,11 @@ def _run(args: argparse.Namespace) -> int:
 
     if args.reuse is not None and (args.frames is not None or args.resolution is not None):
         raise ConfigError("--reuse takes the dataset as it is; drop --frames / --resolution")
+    if args.reuse is not None and args.motion is not None:
+        raise ConfigError(
+            "--motion sets the motion of the sequences to generate; --reuse generates none: "
+            "drop one of them"
+        )
     rows = paper_rows(
         [k.strip() for k in args.rows.split(",") if k.strip()] if args.rows else None,
         plugins=not args.no_plugins,
@@ -210,6 +245,8 @@ def _run(args: argparse.Namespace) -> int:
             frames=args.frames,
             resolution=None if args.resolution is None else parse_resolution(args.resolution),
         )
+        if args.motion is not None:
+            _preset_scenarios(args.motion)  # every object's motion file is there and readable
     out = prepare_output_dir(args.out, overwrite=args.overwrite, resume=args.resume)
     progress = not (args.no_progress or args.quiet or args.json)
     t0 = time.perf_counter()

@@ -26,6 +26,7 @@ from roft_sim.generation.presets import (
     Preset,
     preset_scenario_paths,
     shipped_scenarios_dir,
+    with_fast_ycb_motion,
 )
 from roft_sim.generation.runner import (
     GenerationError,
@@ -64,6 +65,7 @@ __all__ = [
     "Preset",
     "preset_scenario_paths",
     "shipped_scenarios_dir",
+    "with_fast_ycb_motion",
     "SequenceGenerator",
     "ground_truth_track",
     "visible_fraction",
