@@ -24,6 +24,7 @@ from roft_sim.errors import ConfigError, DatasetFormatError
 
 if TYPE_CHECKING:  # the harness loads only when the verb runs
     from roft_sim.harness.paper import PaperResult
+    from roft_sim.scenario import Scenario
 
 __all__ = ["register"]
 
@@ -154,7 +155,7 @@ def _generate(args: argparse.Namespace, out: Path, progress: bool) -> tuple[Path
     return dataset, info
 
 
-def _preset_scenarios(motion: Path | None) -> list[Any]:
+def _preset_scenarios(motion: Path | None) -> list[Scenario]:
     """The ``fast-ycb`` preset's scenarios, each replaying its object's motion from the Fast-YCB
     dataset ``motion`` when given (:func:`~roft_sim.generation.with_fast_ycb_motion`).
 
