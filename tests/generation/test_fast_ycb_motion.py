@@ -12,20 +12,14 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from roft_sim.assets import FAST_YCB_OBJECTS
 from roft_sim.cli import main
 from roft_sim.errors import ConfigError
 from roft_sim.generation import preset_scenario_paths, with_fast_ycb_motion
 from roft_sim.scenario import load_scenario
 from roft_sim.trajectories import CapturedMotionConfig, build_trajectory
 
-OBJECTS = (
-    "003_cracker_box",
-    "004_sugar_box",
-    "005_tomato_soup_can",
-    "006_mustard_bottle",
-    "009_gelatin_box",
-    "010_potted_meat_can",
-)
+OBJECTS = FAST_YCB_OBJECTS
 
 
 def _motion_rows(n: int, phase: float) -> np.ndarray:
