@@ -354,3 +354,19 @@ def test_per_object_motion_needs_both_rows_and_three_objects(tmp_path):
     assert csv[0].split(",")[:2] == ["entry", "add_gap"] and len(csv) == len(objects) + 2
     write_paper_tables(tmp_path / "none", rows[:1], without_stale)
     assert "does the difference follow" not in (tmp_path / "none" / "tables.md").read_text()
+
+
+def test_docs_paper_md_names_every_option():
+    """docs/paper.md's option table names every option of ``roft-sim paper``."""
+    import argparse
+    from pathlib import Path
+
+    from roft_sim.cli import build_parser
+
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    text = (Path(__file__).resolve().parents[2] / "docs" / "paper.md").read_text()
+    options = [s for a in sub.choices["paper"]._actions for s in a.option_strings]
+    assert "--motion" in options
+    for option in options:
+        if option not in ("-h", "--help"):
+            assert f"`{option}" in text, option
