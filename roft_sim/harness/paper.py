@@ -152,6 +152,13 @@ PAPER_ROWS: tuple[PaperRow, ...] = (
 """The rows of Tables I, II and IV (in Table IV's order)."""
 
 
+def _configuration_row(configuration: str, default_key: str) -> str:
+    """The key of a configuration's row: our default's row key (``roft``, ``roft_gt_pose``,
+    ``roft_no_mask_sync``, ...) with ``roft`` replaced by the configuration's plain row key
+    (``roft_reference`` -> ``roft_reference_gt_pose``, ...)."""
+    return configuration + default_key.removeprefix("roft")
+
+
 def _reference_rows() -> tuple[PaperRow, ...]:
     """``roft_reference`` and its Table IV ablation rows (tracker ``roft-reference``), then the
     attribution rows: the reference plus the first n deviations, for n = 1 .. N-1 (n = 0 is
@@ -162,7 +169,7 @@ def _reference_rows() -> tuple[PaperRow, ...]:
     for r in PAPER_ROWS:
         if r.tracker != "roft":
             continue
-        key = r.key.replace("roft", "roft_reference", 1)
+        key = _configuration_row("roft_reference", r.key)
         tables = tuple(t for t in r.tables if t in ("I", "II", "IV"))
         label = r.label.replace("ROFT", "ROFT (reference config)", 1)
         rows.append(
@@ -346,7 +353,7 @@ def check_findings(results: dict[str, RowMetrics], *, configuration: str = "roft
     velocity_metrics = ("rmse_v_cmps", "rmse_w_dps")
 
     def key(default_key: str) -> str:
-        return configuration + default_key.removeprefix("roft")
+        return _configuration_row(configuration, default_key)
 
     roft, ablation_rows = key("roft"), [key(k) for k in _ABLATION_ROWS]
     gt_rows = [key(k) for k in _GT_ROWS]
@@ -721,7 +728,7 @@ def table4_order(
     labels = {r.key: r.label for r in PAPER_ROWS}
 
     def sim_key(default_key: str) -> str:
-        return configuration + default_key.removeprefix("roft")
+        return _configuration_row(configuration, default_key)
 
     out = []
     for metric in ("add_auc_pct", "rmse_t_cm", "rmse_a_deg"):
@@ -843,7 +850,7 @@ def per_object_motion(
     """
     from scipy.stats import spearmanr
 
-    stale = f"{configuration}_no_mask_sync"
+    stale = _configuration_row(configuration, "roft_no_mask_sync")
     if configuration not in results or stale not in results:
         return None
     sources = (("roft", configuration, "ROFT"), ("stale_masks", stale, _STALE_MASK_PAPER_ROW))
@@ -905,6 +912,19 @@ def _table_entries(results: dict[str, RowMetrics], paper: PaperTables) -> list[s
     objects_run = sorted({e for r in results.values() for e in r if e != ALL})
     entries = [o for o in paper.objects if o in objects_run]
     return entries + [o for o in objects_run if o not in entries] + [ALL]
+
+
+def _per_object_motions(
+    results: dict[str, RowMetrics], paper: PaperTables
+) -> list[PerObjectMotion]:
+    """:func:`per_object_motion` of each checked configuration whose rows ran, over the objects
+    of the other tables."""
+    entries = _table_entries(results, paper)
+    return [
+        m
+        for c in checked_configurations(results)
+        if (m := per_object_motion(results, paper, entries, configuration=c)) is not None
+    ]
 
 
 def write_paper_tables(
@@ -973,11 +993,7 @@ def write_paper_tables(
         ]
         atomic_write_text(out / "attribution.csv", csv_table(cols, trs))
         tex.append(latex_table(cols, trs, caption="Deviations from the reference, one at a time"))
-    motions = [
-        m
-        for c in configurations
-        if (m := per_object_motion(results, paper, entries, configuration=c)) is not None
-    ]
+    motions = _per_object_motions(results, paper)
     if motions:
         md += [
             "## Per object: does the difference follow the motion? (paper / sim velocity errors)",
@@ -1048,12 +1064,9 @@ def run_paper(
     records = execute_cells(cells, out / CELLS_DIR, executor=executor, progress=progress)
     results = paper_metrics(cells, records, out / CELLS_DIR)
     tables, findings = write_paper_tables(out, rows, results, header=header)
-    paper = paper_tables()
     motions = {
-        c: {"rows": m.rows, "rank_correlation": m.rank_correlation}
-        for c in checked_configurations(results)
-        if (m := per_object_motion(results, paper, _table_entries(results, paper), configuration=c))
-        is not None
+        m.configuration: {"rows": m.rows, "rank_correlation": m.rank_correlation}
+        for m in _per_object_motions(results, paper_tables())
     }
     write_json(
         out / "paper.json",
