@@ -62,7 +62,6 @@ baseline must know the spec.
 from __future__ import annotations
 
 import argparse
-import compileall
 import dataclasses
 import json
 import os
@@ -76,7 +75,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-REPO = Path(__file__).resolve().parents[1]
+from baseline_trees import Tree, baseline_tree, compile_trees, current_tree
 
 
 # ------------------------------------------------------------------------ child measurements
@@ -279,15 +278,6 @@ def child_main(spec: dict[str, Any]) -> None:
 
 
 # ----------------------------------------------------------------------------- the driver
-@dataclasses.dataclass
-class Tree:
-    """A version of the package to measure: its label and the folder put on PYTHONPATH."""
-
-    label: str
-    pythonpath: Path
-    cache: Path
-
-
 def run_child(tree: Tree, spec: dict[str, Any]) -> Any:
     env = dict(os.environ, PYTHONPATH=str(tree.pythonpath))
     res = subprocess.run(
@@ -439,17 +429,6 @@ def memory(args: argparse.Namespace, tree: Tree) -> None:
         )
 
 
-def baseline_tree(ref: str, scratch: Path) -> Tree:
-    """The package at git commit ``ref`` of this repository, extracted under ``scratch``."""
-    folder = scratch / f"baseline_{ref}"
-    folder.mkdir()
-    archive = subprocess.run(
-        ["git", "-C", str(REPO), "archive", ref, "roft_sim"], capture_output=True, check=True
-    ).stdout
-    subprocess.run(["tar", "-x", "-C", str(folder)], input=archive, check=True)
-    return Tree(label=ref[:9], pythonpath=folder, cache=scratch / f"cache_baseline_{ref}")
-
-
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--resolutions", nargs="+", default=["640x480", "1280x720"])
@@ -490,10 +469,9 @@ def main() -> None:
         return
     scratch = Path(tempfile.mkdtemp(prefix="bench_generate_trees_"))
     try:
-        now = Tree(label="now", pythonpath=REPO, cache=scratch / "cache_now")
+        now = current_tree(scratch)
         trees = [*(baseline_tree(ref, scratch) for ref in args.baseline_ref), now]
-        for tree in trees:  # as an installed package is: a fresh process reads bytecode
-            compileall.compile_dir(tree.pythonpath / "roft_sim", quiet=1)
+        compile_trees(trees)  # as an installed package is: a fresh process reads bytecode
         if not args.skip_throughput:
             throughput(args, trees)
         if not args.skip_memory:

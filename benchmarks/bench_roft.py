@@ -1,18 +1,44 @@
-"""Median ROFT step time at 640x480 and 1280x720, with flow given and with OpenCV DIS included.
+"""ROFT's step time, stage by stage, and its accuracy, side by side with baseline commits.
 
-Runs on ONE core (BLAS and OpenCV threads pinned to 1 before they load). The scene is the
-analytic textured box of :mod:`roft_sim.testing.analytic_scene` in fast motion (peaks near
-0.4 m/s and 4 rad/s), with the paper's schedule: a pose and a mask every 6 frames, each delivered
-6 frames late (frame 0 undelayed), ground-truth flow, and the numpy analytic depth renderer for
-the outlier test (its time is reported apart: a real renderer replaces it).
+One process per tree and run, on ONE core (BLAS and OpenCV threads pinned to 1 before they
+load). The scene is the analytic textured box of :mod:`roft_sim.testing.analytic_scene` in fast
+motion (peaks near 0.4 m/s and 4 rad/s), with the paper's schedule: a pose and a mask every 6
+frames, each delivered 6 frames late (frame 0 undelayed), ground-truth flow (or OpenCV DIS
+computed in the step's clock with ``--dis-presets``), and the numpy analytic depth renderer for
+the outlier test (its time is reported apart: a real renderer replaces it). The sequence is
+rendered once per resolution and kept as ``.npy`` files that every process maps (``--cache``
+keeps them between runs).
 
-    python benchmarks/bench_roft.py                 # both resolutions, flow given and DIS
-    python benchmarks/bench_roft.py --frames 24 --resolutions 1280x720 --dis-presets ultrafast
+With ``--baseline-ref REF [REF ...]`` every measurement also runs on the package as it was at
+each git commit (``git archive``), interleaved with the working tree's (baseline, ..., now,
+baseline, ..., now), so that every tree sees the same machine load: a speed-up is a ratio
+measured in one run. The same run scores every tree's estimates against the exact ground truth
+(ADD-AUC, position / rotation / velocity RMSE) and prints the largest per-frame difference
+between the working tree's estimates and each baseline's, so a speed-up that moves accuracy
+shows in the same table.
 
-Prints, per resolution: the median / 90th percentile / mean step time over all frames, over the
-frames without a pose (predict + velocity update) and over the frames with one (replay of 7
-frames with the outlier test), the time spent in the depth renderer, and with DIS the median of
-flow + step. Goal (issue 6): median <= 5 ms per step at 1280x720 on one core, flow given.
+Printed per resolution and input (flow given, or DIS + step): the step's wall time [ms], median,
+p95, p99, max and mean over all frames, over the frames without an arriving pose and over the
+frames where one arrives (the replay of the delayed pose); then, for trees whose tracker reports
+them (``RoftTracker.stage_times_s``), the same for each stage: ``mask_sync`` (propagating the
+mask, warping an arrived one), ``velocity`` (the flow measurement with its depth rows and
+residual fits, and the velocity KF), ``remeasure`` (the velocity KF re-run over the flows a
+freshly arrived mask reads again), ``pose`` (the pose UKF's predict and correct of this frame),
+``replay`` (the pose UKF re-run from an arrived pose's capture frame, outlier test included)
+and ``render`` (the outlier test's depth renders, inside ``replay`` and ``pose``).
+
+    python benchmarks/bench_roft.py --frames 150 --repeats 2 --baseline-ref HEAD~1
+    python benchmarks/bench_roft.py --resolutions 640x480 --dis-presets ultrafast
+    python benchmarks/bench_roft.py --resolutions 1280x720 --repeats 1 --cache /tmp/bench_roft
+
+Profiles of one run (how the hot spots are found; pyinstrument is in the dev extra):
+
+    python -m pyinstrument -r text benchmarks/bench_roft.py --profile 1280x720
+    python -m pyinstrument -r text benchmarks/bench_roft.py --profile 640x480 --frames 60
+
+Goals: at 1280x720, median <= 4 ms, p95 <= 12, p99 <= 20, max <= 33 (a 30 fps camera's period,
+pose arrivals included) and mean <= 5 ms; at 640x480 median <= 2 ms, p95 <= 6, and DIS
+ultrafast + step p95 <= 33 ms.
 """
 
 from __future__ import annotations
@@ -23,152 +49,376 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ[_var] = "1"
 
 import argparse  # noqa: E402
+import json  # noqa: E402
+import shutil  # noqa: E402
+import subprocess  # noqa: E402
 import sys  # noqa: E402
+import tempfile  # noqa: E402
 import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+from typing import Any  # noqa: E402
 
-import cv2  # noqa: E402
 import numpy as np  # noqa: E402
+from baseline_trees import Tree, baseline_tree, compile_trees, current_tree  # noqa: E402
 
-from roft_sim.records import FlowField, MaskDetection, Observation, PoseDetection  # noqa: E402
-from roft_sim.testing.analytic_scene import (  # noqa: E402
-    AnalyticBoxDepthRenderer,
-    analytic_box_sequence,
-    default_intrinsics,
-)
-from roft_sim.trackers.base import TrackerContext  # noqa: E402
-from roft_sim.trackers.roft import RoftConfig, RoftTracker  # noqa: E402
+PERIOD = 6
+"""Frames between two captures of the pose and mask networks (the paper's 5 fps at 30 fps)."""
+DELAY = 6
+"""Frames a capture takes to arrive (the paper's 200 ms)."""
+STAGES = ("mask_sync", "velocity", "remeasure", "pose", "replay", "render")
+"""The stages a tracker may report in ``stage_times_s``, in pipeline order."""
 
-DIS_PRESETS = {
-    "ultrafast": cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST,
-    "fast": cv2.DISOPTICAL_FLOW_PRESET_FAST,
-    "medium": cv2.DISOPTICAL_FLOW_PRESET_MEDIUM,
-}
+
+# ----------------------------------------------------------------------------- the sequence
+def sequence_folder(cache: Path, width: int, height: int, frames: int) -> Path:
+    """Renders the analytic sequence into ``cache`` once; returns its folder."""
+    folder = cache / f"analytic_{width}x{height}_{frames}"
+    if (folder / "meta.json").exists():
+        return folder
+    import cv2
+
+    from roft_sim.testing.analytic_scene import analytic_box_sequence, default_intrinsics
+
+    t0 = time.perf_counter()
+    seq = analytic_box_sequence(n_frames=frames, intrinsics=default_intrinsics(width, height))
+    tmp = folder.with_name(folder.name + ".partial")
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.mkdir(parents=True)
+    shape = (frames, height, width)
+    depth = np.lib.format.open_memmap(tmp / "depth.npy", "w+", np.float32, shape)
+    grey = np.lib.format.open_memmap(tmp / "grey.npy", "w+", np.uint8, shape)
+    flow = np.lib.format.open_memmap(tmp / "flow.npy", "w+", np.float32, shape + (2,))
+    valid = np.lib.format.open_memmap(tmp / "valid.npy", "w+", np.bool_, shape)
+    for k in range(frames):
+        depth[k] = seq.depth(k)
+        grey[k] = cv2.cvtColor(seq.rgb(k), cv2.COLOR_RGB2GRAY)
+        f = seq.flow(k, "gt")
+        if f is not None:
+            flow[k] = f.flow_px
+            valid[k] = f.valid if f.valid is not None else True
+    for arr in (depth, grey, flow, valid):
+        arr.flush()
+    captures = [0, *range(PERIOD, frames, PERIOD)]
+    np.save(tmp / "masks.npy", np.stack([seq.mask(c, "gt") for c in captures]))
+    np.savez(
+        tmp / "gt.npz",
+        T_cam_obj=seq.gt.T_cam_obj,
+        v_obj_mps=seq.gt.v_obj_mps,
+        w_radps=seq.gt.w_radps,
+        model_points_m=seq.object_model().model_points_m,
+    )
+    meta = {
+        "frames": frames,
+        "fps": seq.fps,
+        "width": width,
+        "height": height,
+        "captures": captures,
+        "times_s": [seq.time_s(k) for k in range(frames)],
+        "mask_px": float(np.mean([seq.mask(k, "gt").sum() for k in range(frames)])),
+        "render_s": time.perf_counter() - t0,
+    }
+    (tmp / "meta.json").write_text(json.dumps(meta))
+    tmp.rename(folder)
+    return folder
+
+
+# ----------------------------------------------------------------------------- the child
+class Observations:
+    """The paper's schedule: captures every PERIOD frames delivered DELAY frames late (the
+    first one, frame 0, undelayed); each frame's observation is read from the mapped files
+    when asked for (outside the timed step)."""
+
+    def __init__(self, folder: Path):
+        self.meta = json.loads((folder / "meta.json").read_text())
+        self.depth = np.load(folder / "depth.npy", mmap_mode="r")
+        self.flow = np.load(folder / "flow.npy", mmap_mode="r")
+        self.valid = np.load(folder / "valid.npy", mmap_mode="r")
+        self.masks = np.load(folder / "masks.npy")
+        self.T = np.load(folder / "gt.npz")["T_cam_obj"]
+        captures = self.meta["captures"]
+        self.arrivals = {(c + DELAY if c else 0): (i, c) for i, c in enumerate(captures)}
+
+    def __len__(self) -> int:
+        return int(self.meta["frames"])
+
+    def __getitem__(self, k: int) -> Any:
+        from roft_sim.records import FlowField, MaskDetection, Observation, PoseDetection
+
+        poses: tuple[Any, ...] = ()
+        masks: tuple[Any, ...] = ()
+        if k in self.arrivals:
+            i, c = self.arrivals[k]
+            T = self.T[c]
+            poses = (PoseDetection(capture_k=c, arrival_k=k, T_cam_obj=T, detection_id=k),)
+            masks = (MaskDetection(capture_k=c, arrival_k=k, mask=self.masks[i], detection_id=k),)
+        flow = None
+        if k:
+            flow = FlowField(
+                flow_px=np.array(self.flow[k]),
+                from_k=k - 1,
+                to_k=k,
+                valid=np.array(self.valid[k]),
+            )
+        return Observation(
+            k=k,
+            t_s=self.meta["times_s"][k],
+            rgb=None,
+            depth_m=np.array(self.depth[k]),
+            flow=flow,
+            poses=poses,
+            masks=masks,
+        )
 
 
 class TimedRenderer:
     """Wraps a depth renderer and accumulates the time spent in it."""
 
-    def __init__(self, inner: AnalyticBoxDepthRenderer):
+    def __init__(self, inner: Any):
         self.inner = inner
         self.seconds = 0.0
 
-    def render_depth(self, T_cam_obj, intrinsics):
+    def render_depth(self, T_cam_obj: Any, intrinsics: Any) -> Any:
         t0 = time.perf_counter()
         out = self.inner.render_depth(T_cam_obj, intrinsics)
         self.seconds += time.perf_counter() - t0
         return out
 
 
-def observations(seq, flows, period=6, delay=6):
-    """The paper's schedule: captures every ``period`` frames delivered ``delay`` frames late
-    (the first one, frame 0, undelayed)."""
-    n = len(seq)
-    captures = {0: 0} | {c + delay: c for c in range(period, n, period)}
-    out = []
-    for k in range(n):
-        poses, masks = (), ()
-        if k in captures:
-            c = captures[k]
-            T = seq.gt.T_cam_obj[c]
-            poses = (PoseDetection(capture_k=c, arrival_k=k, T_cam_obj=T, detection_id=k),)
-            m = seq.mask(c, "gt")
-            masks = (MaskDetection(capture_k=c, arrival_k=k, mask=m, detection_id=k),)
-        out.append(
-            Observation(
-                k=k,
-                t_s=seq.time_s(k),
-                rgb=seq.rgb(k),
-                depth_m=seq.depth(k),
-                flow=flows[k],
-                poses=poses,
-                masks=masks,
-            )
-        )
-    return out
+def make_tracker(meta: dict[str, Any], renderer: TimedRenderer, config: str) -> Any:
+    from roft_sim.testing.analytic_scene import AnalyticBox, default_intrinsics
+    from roft_sim.trackers.base import TrackerContext
+    from roft_sim.trackers.roft import RoftConfig, RoftTracker
 
+    cfg = RoftConfig()
+    if config == "reference":
+        from roft_sim.trackers.roft.reference import reference_config
 
-def run_once(seq, obs, renderer, flow_fn=None):
+        cfg = reference_config()
     ctx = TrackerContext(
-        intrinsics=seq.intrinsics,
-        fps=seq.fps,
-        object_model=seq.object_model(),
+        intrinsics=default_intrinsics(meta["width"], meta["height"]),
+        fps=meta["fps"],
+        object_model=AnalyticBox().object_model(),
         rng=np.random.default_rng(0),
         depth_renderer=renderer,
     )
-    tracker = RoftTracker(RoftConfig(), ctx)
+    tracker = RoftTracker(cfg, ctx)
     tracker.reset(None)
-    times, cpu, has_pose, render_s = [], [], [], []
-    for o in obs:
+    return tracker
+
+
+def child_main(spec: dict[str, Any]) -> None:
+    """Runs the tracker once over the sequence; writes the times and estimates to an npz."""
+    import cv2
+
+    from roft_sim.records import FlowField
+    from roft_sim.testing.analytic_scene import AnalyticBoxDepthRenderer
+
+    cv2.setNumThreads(1)
+    folder = Path(spec["folder"])
+    meta = json.loads((folder / "meta.json").read_text())
+    obs = Observations(folder)
+    grey = np.load(folder / "grey.npy", mmap_mode="r") if spec["dis"] else None
+    dis = None
+    if spec["dis"]:
+        preset = getattr(cv2, f"DISOPTICAL_FLOW_PRESET_{spec['dis'].upper()}")
+        dis = cv2.DISOpticalFlow_create(preset)
+        grey = np.array(grey)
+    renderer = TimedRenderer(AnalyticBoxDepthRenderer())
+    tracker = make_tracker(meta, renderer, spec["config"])
+    n = len(obs)
+    wall, cpu, render = np.zeros(n), np.zeros(n), np.zeros(n)
+    stages = np.full((n, len(STAGES)), np.nan)
+    T = np.full((n, 4, 4), np.nan)
+    twist = np.full((n, 6), np.nan)
+    for k in range(n):
+        o = obs[k]
         before = renderer.seconds
         t0, c0 = time.perf_counter(), time.thread_time()
-        if flow_fn is not None:
-            o = flow_fn(o)
-        tracker.step(o)
-        times.append(time.perf_counter() - t0)
-        cpu.append(time.thread_time() - c0)
-        render_s.append(renderer.seconds - before)
-        has_pose.append(bool(o.poses))
-    return np.array(times), np.array(cpu), np.array(has_pose), np.array(render_s)
-
-
-def summarise(label, times, cpu, has_pose, render_s):
-    ms = 1e3 * times
-    cpu_ms = 1e3 * cpu
-    pose = has_pose
-    rend = 1e3 * render_s
-    print(
-        f"  {label:<22} wall median {np.median(ms):6.2f} ms (CPU {np.median(cpu_ms):6.2f})  "
-        f"p90 {np.percentile(ms, 90):6.2f}  mean {ms.mean():6.2f} | no pose: median "
-        f"{np.median(ms[~pose]):6.2f} | pose frames: median {np.median(ms[pose]):6.2f} "
-        f"(renderer {np.median(rend[pose]):5.2f}) | median without renderer "
-        f"{np.median(ms - rend):6.2f}"
+        if dis is not None and k:
+            f = dis.calc(grey[k - 1], grey[k], None)
+            o = dataclass_replace(o, flow=FlowField(flow_px=f, from_k=k - 1, to_k=k))
+        est = tracker.step(o)
+        wall[k] = time.perf_counter() - t0
+        cpu[k] = time.thread_time() - c0
+        render[k] = renderer.seconds - before
+        times = getattr(tracker, "stage_times_s", None)
+        if times is not None:
+            stages[k] = [times.get(s, 0.0) for s in STAGES]
+        if est.valid:
+            T[k] = est.T_cam_obj
+            twist[k] = np.concatenate([est.v_obj_mps, est.w_radps])
+    np.savez(
+        spec["out"],
+        wall=wall,
+        cpu=cpu,
+        render=render,
+        stages=stages,
+        has_pose=np.array([k in obs.arrivals for k in range(n)]),
+        T=T,
+        twist=twist,
     )
 
 
-def main(argv=None) -> int:
+def dataclass_replace(obj: Any, **changes: Any) -> Any:
+    import dataclasses
+
+    return dataclasses.replace(obj, **changes)
+
+
+# ----------------------------------------------------------------------------- the parent
+def run_child(tree: Tree, spec: dict[str, Any]) -> dict[str, np.ndarray]:
+    env = dict(os.environ, PYTHONPATH=str(tree.pythonpath))
+    res = subprocess.run(
+        [sys.executable, __file__, "--child", json.dumps(spec)],
+        capture_output=True,
+        text=True,
+        env=env,
+    )
+    if res.returncode != 0:
+        raise RuntimeError(f"{tree.label} child failed:\n{res.stderr[-3000:]}")
+    with np.load(spec["out"]) as data:
+        return {k: data[k] for k in data.files}
+
+
+def percentiles_ms(seconds: np.ndarray) -> str:
+    ms = 1e3 * seconds[np.isfinite(seconds)]
+    if ms.size == 0:
+        return f"{'n/a':>47}"
+    p = np.percentile(ms, [50, 95, 99])
+    return f"{p[0]:7.2f} {p[1]:7.2f} {p[2]:7.2f} {ms.max():7.2f} {ms.mean():7.2f}"
+
+
+def accuracy(run: dict[str, np.ndarray], gt: Any) -> str:
+    """ADD-AUC [%], position RMSE [cm], rotation RMSE [deg], v / w RMSE [cm/s, deg/s] (frames
+    without an estimate: ADD failures, left out of the RMSEs)."""
+    from roft_sim.metrics.auc import add_auc
+    from roft_sim.metrics.pose_errors import add_distances, rotation_errors_rad
+
+    T = run["T"]
+    ok = np.isfinite(T).all(axis=(1, 2))
+    d = np.full(len(T), np.inf)
+    d[ok] = add_distances(T[ok], gt["T_cam_obj"][ok], gt["model_points_m"])
+    e_t = np.linalg.norm(T[ok, :3, 3] - gt["T_cam_obj"][ok, :3, 3], axis=1)
+    e_a = rotation_errors_rad(T[ok], gt["T_cam_obj"][ok])
+    e_v = np.linalg.norm(run["twist"][ok, :3] - gt["v_obj_mps"][ok], axis=1)
+    e_w = np.linalg.norm(run["twist"][ok, 3:] - gt["w_radps"][ok], axis=1)
+
+    def rms(x: np.ndarray) -> float:
+        return float(np.sqrt(np.mean(x**2)))
+
+    return (
+        f"ADD-AUC {add_auc(d):6.2f} %  e_t {100 * rms(e_t):6.3f} cm  "
+        f"e_a {np.degrees(rms(e_a)):6.3f} deg  e_v {100 * rms(e_v):6.3f} cm/s  "
+        f"e_w {np.degrees(rms(e_w)):7.3f} deg/s"
+    )
+
+
+def difference(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> str:
+    """Largest per-frame difference between two runs' estimates."""
+    from roft_sim.metrics.pose_errors import rotation_errors_rad
+
+    Ta, Tb = a["T"], b["T"]
+    both = np.isfinite(Ta).all(axis=(1, 2)) & np.isfinite(Tb).all(axis=(1, 2))
+    mismatch = int((np.isfinite(Ta).all(axis=(1, 2)) != np.isfinite(Tb).all(axis=(1, 2))).sum())
+    if not both.any():
+        return f"no frame estimated by both; {mismatch} validity mismatches"
+    dp = np.linalg.norm(Ta[both, :3, 3] - Tb[both, :3, 3], axis=1).max()
+    da = rotation_errors_rad(Ta[both], Tb[both]).max()
+    dv = np.abs(a["twist"][both] - b["twist"][both]).max(axis=0)
+    return (
+        f"max |diff| position {1e3 * dp:.2e} mm, rotation {np.degrees(da):.2e} deg, "
+        f"v {dv[:3].max():.2e} m/s, w {dv[3:].max():.2e} rad/s; "
+        f"{mismatch} validity mismatches"
+    )
+
+
+def report(label: str, trees: list[Tree], runs: dict[str, list[dict[str, np.ndarray]]]) -> None:
+    now = trees[-1].label
+    print(f"  {label}: step wall time [ms]      median     p95     p99     max    mean")
+    for tree in trees:
+        rs = runs[tree.label]
+        wall = np.concatenate([r["wall"] for r in rs])
+        pose = np.concatenate([r["has_pose"] for r in rs])
+        for name, sel in (("all", slice(None)), ("no pose", ~pose), ("pose arrives", pose)):
+            print(f"    {tree.label:<10} {name:<18} {percentiles_ms(wall[sel])}")
+    base_medians = {
+        t.label: np.median(np.concatenate([r["wall"] for r in runs[t.label]])) for t in trees
+    }
+    for tree in trees[:-1]:
+        ratio = base_medians[now] / base_medians[tree.label]
+        print(f"    now / {tree.label}: median step {ratio:.3f}x")
+    for tree in trees:
+        stages = np.concatenate([r["stages"] for r in runs[tree.label]])
+        if np.isnan(stages).all():
+            continue
+        pose = np.concatenate([r["has_pose"] for r in runs[tree.label]])
+        print(f"    stages of {tree.label} [ms]     median     p95     p99     max    mean")
+        for i, stage in enumerate(STAGES):
+            for name, sel in (("", ~pose), (" (pose)", pose)):
+                print(f"      {stage + name:<22} {percentiles_ms(stages[sel, i])}")
+
+
+def measure(
+    trees: list[Tree], folder: Path, scratch: Path, args: argparse.Namespace, dis: str | None
+) -> dict[str, list[dict[str, np.ndarray]]]:
+    runs: dict[str, list[dict[str, np.ndarray]]] = {t.label: [] for t in trees}
+    for r in range(args.repeats):
+        for tree in trees:
+            out = scratch / f"{tree.label}_{folder.name}_{dis}_{r}.npz"
+            spec = {"folder": str(folder), "dis": dis, "config": args.config, "out": str(out)}
+            runs[tree.label].append(run_child(tree, spec))
+    return runs
+
+
+def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--frames", type=int, default=37)
-    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--frames", type=int, default=150)
+    parser.add_argument("--repeats", type=int, default=2)
     parser.add_argument("--resolutions", nargs="+", default=["640x480", "1280x720"])
-    parser.add_argument("--dis-presets", nargs="*", default=["ultrafast", "medium"])
+    parser.add_argument("--dis-presets", nargs="*", default=[], help="e.g. ultrafast medium")
+    parser.add_argument("--baseline-ref", nargs="*", default=[], help="git commits to compare")
+    parser.add_argument("--config", choices=("default", "reference"), default="default")
+    parser.add_argument("--cache", type=Path, help="keep the rendered sequences here")
+    parser.add_argument("--profile", metavar="WxH", help="one in-process run, for a profiler")
+    parser.add_argument("--child", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
-    cv2.setNumThreads(1)
-    print(f"python {sys.version.split()[0]}, numpy {np.__version__}, opencv {cv2.__version__}")
-    for res in args.resolutions:
-        w, h = (int(x) for x in res.split("x"))
-        t0 = time.perf_counter()
-        seq = analytic_box_sequence(n_frames=args.frames, intrinsics=default_intrinsics(w, h))
-        flows = [seq.flow(k, "gt") for k in range(len(seq))]
-        mask_px = np.mean([seq.mask(k, "gt").sum() for k in range(len(seq))])
+    if args.child is not None:
+        child_main(json.loads(args.child))
+        return 0
+    scratch = Path(tempfile.mkdtemp(prefix="bench_roft_"))
+    cache = args.cache or scratch
+    try:
+        if args.profile:
+            w, h = (int(x) for x in args.profile.split("x"))
+            folder = sequence_folder(cache, w, h, args.frames)
+            spec = {"folder": str(folder), "dis": None, "config": args.config}
+            child_main({**spec, "out": str(scratch / "profile.npz")})
+            return 0
+        trees = [*(baseline_tree(ref, scratch) for ref in args.baseline_ref), current_tree(scratch)]
+        compile_trees(trees)
         print(
-            f"{res}: {args.frames} frames, object mask {mask_px:.0f} px "
-            f"(scene built in {time.perf_counter() - t0:.1f} s)"
+            f"python {sys.version.split()[0]}, numpy {np.__version__}; {os.cpu_count()} CPUs, "
+            f"load average {', '.join(f'{x:.2f}' for x in os.getloadavg())}; "
+            f"config {args.config}; {args.repeats} interleaved runs per tree"
         )
-        renderer = TimedRenderer(AnalyticBoxDepthRenderer())
-        obs = observations(seq, flows)
-        runs = [run_once(seq, obs, renderer) for _ in range(args.repeats)]
-        summarise("flow given", *(np.concatenate(r) for r in zip(*runs, strict=True)))
-        grey = [cv2.cvtColor(seq.rgb(k), cv2.COLOR_RGB2GRAY) for k in range(len(seq))]
-        for preset in args.dis_presets:
-            dis = cv2.DISOpticalFlow_create(DIS_PRESETS[preset])
-
-            def with_dis(o, dis=dis, grey=grey):
-                if o.k == 0:
-                    return o
-                f = dis.calc(grey[o.k - 1], grey[o.k], None)
-                flow = FlowField(flow_px=f, from_k=o.k - 1, to_k=o.k)
-                return Observation(
-                    k=o.k,
-                    t_s=o.t_s,
-                    rgb=o.rgb,
-                    depth_m=o.depth_m,
-                    flow=flow,
-                    poses=o.poses,
-                    masks=o.masks,
-                )
-
-            runs = [run_once(seq, obs, renderer, with_dis) for _ in range(args.repeats)]
-            summarise(f"DIS {preset} + step", *(np.concatenate(r) for r in zip(*runs, strict=True)))
+        for res in args.resolutions:
+            w, h = (int(x) for x in res.split("x"))
+            folder = sequence_folder(cache, w, h, args.frames)
+            meta = json.loads((folder / "meta.json").read_text())
+            gt = dict(np.load(folder / "gt.npz"))
+            print(f"{res}: {args.frames} frames, object mask {meta['mask_px']:.0f} px")
+            for dis in [None, *args.dis_presets]:
+                runs = measure(trees, folder, scratch, args, dis)
+                label = "flow given" if dis is None else f"DIS {dis} + step"
+                report(label, trees, runs)
+                for tree in trees:
+                    print(f"    accuracy {tree.label:<10} {accuracy(runs[tree.label][0], gt)}")
+                for tree in trees[:-1]:
+                    diff = difference(runs[trees[-1].label][0], runs[tree.label][0])
+                    print(f"    now vs {tree.label}: {diff}")
+            print(f"  load average after: {os.getloadavg()[0]:.2f}", flush=True)
+    finally:
+        shutil.rmtree(scratch, ignore_errors=True)
     return 0
 
 

@@ -116,12 +116,11 @@ def project_points(intrinsics: CameraIntrinsics, p_cam: ArrayLike) -> F64:
     Points at or behind the camera plane (z <= 0) project to NaN.
     """
     p = np.asarray(p_cam, dtype=np.float64)
-    z = p[..., 2]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        zs = np.where(z > 0, z, np.nan)
-        u = intrinsics.fx_px * p[..., 0] / zs + intrinsics.cx_px
-        v = intrinsics.fy_px * p[..., 1] / zs + intrinsics.cy_px
-    return np.stack([u, v], axis=-1)
+    zs = np.where(p[..., 2] > 0, p[..., 2], np.nan)  # NaN / NaN raises no warning
+    out = np.empty(p.shape[:-1] + (2,))
+    out[..., 0] = intrinsics.fx_px * p[..., 0] / zs + intrinsics.cx_px
+    out[..., 1] = intrinsics.fy_px * p[..., 1] / zs + intrinsics.cy_px
+    return out
 
 
 def backproject_pixels(intrinsics: CameraIntrinsics, uv_px: ArrayLike, z_m: ArrayLike) -> F64:

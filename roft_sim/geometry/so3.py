@@ -16,6 +16,8 @@ All functions accept any leading batch shape and return float64 arrays.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -37,6 +39,7 @@ __all__ = [
     "matrix_from_rotvec",
     "rotvec_from_matrix",
     "so3_left_jacobian",
+    "so3_exp_and_left_jacobian",
     "quat_from_axis_angle",
     "axis_angle_from_quat",
     "matrix_from_axis_angle",
@@ -266,6 +269,41 @@ def so3_left_jacobian(r: ArrayLike) -> F64:
     return V
 
 
+def so3_exp_and_left_jacobian(r: F64) -> tuple[F64, F64]:
+    """``exp([r]x)`` and ``J_l(r)`` (each (3, 3)) of ONE rotation vector ``r`` (3,) [rad], in
+    scalar arithmetic: :func:`matrix_from_rotvec` and :func:`so3_left_jacobian` without their
+    batch machinery, for hot loops that take one rotation at a time (equal to 1e-15; tested).
+    No input validation: ``r`` must be finite."""
+    x, y, z = float(r[0]), float(r[1]), float(r[2])
+    theta = math.sqrt(x * x + y * y + z * z)
+    if theta < _SMALL_ANGLE_RAD:
+        s_half = 0.5 - theta * theta / 48.0  # sin(theta / 2) / theta
+        a = 0.5 - theta * theta / 24.0  # (1 - cos theta) / theta^2
+        b = 1.0 / 6.0 - theta * theta / 120.0  # (theta - sin theta) / theta^3
+    else:
+        s_half = math.sin(0.5 * theta) / theta
+        a = (1.0 - math.cos(theta)) / (theta * theta)
+        b = (theta - math.sin(theta)) / (theta * theta * theta)
+    qw, qx, qy, qz = math.cos(0.5 * theta), s_half * x, s_half * y, s_half * z
+    R = np.array(
+        [
+            [1 - 2 * (qy * qy + qz * qz), 2 * (qx * qy - qw * qz), 2 * (qx * qz + qw * qy)],
+            [2 * (qx * qy + qw * qz), 1 - 2 * (qx * qx + qz * qz), 2 * (qy * qz - qw * qx)],
+            [2 * (qx * qz - qw * qy), 2 * (qy * qz + qw * qx), 1 - 2 * (qx * qx + qy * qy)],
+        ]
+    )
+    # J_l = I + a K + b K^2, K = [r]x, K^2 = r r^T - theta^2 I
+    t2 = theta * theta
+    J = np.array(
+        [
+            [1.0 + b * (x * x - t2), -a * z + b * x * y, a * y + b * x * z],
+            [a * z + b * x * y, 1.0 + b * (y * y - t2), -a * x + b * y * z],
+            [-a * y + b * x * z, a * x + b * y * z, 1.0 + b * (z * z - t2)],
+        ]
+    )
+    return R, J
+
+
 def quat_from_axis_angle(axis_angle: ArrayLike) -> F64:
     """Quaternions from Fast-YCB axis-angle rows ``(ax, ay, az, angle)``, shape ``(..., 4)``.
 
@@ -334,6 +372,9 @@ def rotation_angle(R1: ArrayLike, R2: ArrayLike) -> F64:
 def skew(v: ArrayLike) -> F64:
     """Cross-product matrices ``[v]x`` ``(..., 3, 3)`` with ``[v]x @ p = v x p``."""
     v = np.asarray(v, dtype=np.float64)
+    if v.shape == (3,):  # one vector: no batch machinery
+        a, b, c = float(v[0]), float(v[1]), float(v[2])
+        return np.array([[0.0, -c, b], [c, 0.0, -a], [-b, a, 0.0]])
     x, y, z = v[..., 0], v[..., 1], v[..., 2]
     o = np.zeros_like(x)
     return np.stack(

@@ -10,6 +10,11 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from roft_sim import geometry as g
+from roft_sim.geometry.so3 import (
+    matrix_from_rotvec,
+    so3_exp_and_left_jacobian,
+    so3_left_jacobian,
+)
 from roft_sim.testing import assert_quat_close, assert_rotation_close
 from roft_sim.testing.strategies import rotation_vectors, small_rotation_vectors, unit_quaternions
 
@@ -155,3 +160,15 @@ def test_xyzw_boundary_roundtrip():
     q = g.as_quat_wxyz([0.1, 0.2, 0.3, 0.4])
     np.testing.assert_array_equal(g.quat_wxyz_from_xyzw(g.quat_xyzw_from_wxyz(q)), q)
     assert g.quat_xyzw_from_wxyz([1, 2, 3, 4]).tolist() == [2, 3, 4, 1]
+
+
+@pytest.mark.parametrize("angle_rad", [0.0, 1e-9, 9e-7, 1.1e-6, 1e-3, 0.5, 3.0])
+def test_scalar_exp_and_left_jacobian_equal_the_batch_functions_and_scipy(angle_rad):
+    rng = np.random.default_rng(12)
+    for _ in range(20):
+        axis = rng.normal(size=3)
+        r = axis / np.linalg.norm(axis) * angle_rad
+        R, J = so3_exp_and_left_jacobian(r)
+        np.testing.assert_allclose(R, Rotation.from_rotvec(r).as_matrix(), rtol=0, atol=1e-14)
+        np.testing.assert_allclose(R, matrix_from_rotvec(r), rtol=0, atol=1e-14)
+        np.testing.assert_allclose(J, so3_left_jacobian(r), rtol=0, atol=1e-14)

@@ -59,28 +59,29 @@ def rendered_seq() -> InMemorySequence:
 
 @pytest.mark.render
 def test_rendered_mask_resynchronised_through_six_frames_with_gt_flow(rendered_seq):
-    """Measured: inside the GT mask min 0.973, mean 0.995; IoU with it min 0.41, mean 0.864
-    (the minimum where the box turns a new face to the camera within the window)."""
+    """The synchroniser's default warp (sub-pixel points closed after every flow). Measured:
+    inside the GT mask min 0.870, mean 0.968; IoU with it min 0.47, mean 0.879 (the minimum
+    where the box turns a new face to the camera within the window)."""
     flows = [rendered_seq.flow(k, "gt") for k in range(FRAMES)]
-    inside, iou, _ = _mask_sync_figures(rendered_seq, flows, "majority")
+    inside, iou, _ = _mask_sync_figures(rendered_seq, flows, "close")
     print(f"GT flow: inside min {inside.min():.3f} mean {inside.mean():.3f}; "
           f"IoU min {iou.min():.3f} mean {iou.mean():.3f}")  # fmt: skip
-    assert inside.min() >= 0.95
-    assert iou.mean() >= 0.8
+    assert inside.min() >= 0.85 and inside.mean() >= 0.95
+    assert iou.mean() >= 0.85
 
 
 @pytest.mark.render
 def test_rendered_mask_resynchronised_with_dis_flow(rendered_seq):
-    """OpenCV DIS (medium preset) on the rendered grey images. Measured: inside min 0.875, mean
-    0.970; IoU min 0.47, mean 0.861."""
+    """OpenCV DIS (medium preset) on the rendered grey images. Measured: inside min 0.777, mean
+    0.926; IoU min 0.74, mean 0.877."""
     grey = [cv2.cvtColor(rendered_seq.rgb(k), cv2.COLOR_RGB2GRAY) for k in range(FRAMES)]
     dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)
     flows = [None] + [
         FlowField(flow_px=dis.calc(grey[k - 1], grey[k], None), from_k=k - 1, to_k=k)
         for k in range(1, FRAMES)
     ]
-    inside, iou, _ = _mask_sync_figures(rendered_seq, flows, "majority")
+    inside, iou, _ = _mask_sync_figures(rendered_seq, flows, "close")
     print(f"DIS: inside min {inside.min():.3f} mean {inside.mean():.3f}; "
           f"IoU min {iou.min():.3f} mean {iou.mean():.3f}")  # fmt: skip
     assert inside.mean() >= 0.9
-    assert iou.mean() >= 0.75
+    assert iou.mean() >= 0.85

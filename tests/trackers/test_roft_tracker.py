@@ -572,7 +572,7 @@ def test_config_loads_from_toml_with_nested_tables(tmp_path):
         ),
         ("[outlier_rejection]\ngamma = -1.0\n", "gamma must be > 0"),
         ("[pose]\nmeas_cov_q = [0.0, 1e-4, 1e-4]\n", "pose.meas_cov_q must be finite and > 0"),
-        ("[mask]\ncleanup = 'erode'\n", "expected one of 'none', 'close', 'majority'"),
+        ("[mask]\ncleanup = 'erode'\n", "expected one of 'none', 'close'"),
         ("use_flow = false\n", "use_velocity = true needs use_flow = true"),
         ("[sync]\nhorizon_frames = -1\n", "horizon_frames must be in"),
         ("[gate]\nmin_rejection_span_s = -0.1\n", "min_rejection_span_s must be >= 0 seconds"),

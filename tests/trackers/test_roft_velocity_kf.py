@@ -253,7 +253,6 @@ def test_batched_update_equals_the_references_sequential_per_pixel_update(weight
         cov_flow=(1.0, 2.0),
         reweighting_pairs=pairs,
         adapt_flow_noise=False,
-        adapt_process_noise=False,
     )
     kf = VelocityKF(cfg)
     kf.x = rng.normal(size=6)
@@ -342,68 +341,11 @@ def test_adapted_flow_noise_recovers_the_true_spread():
     np.testing.assert_allclose(kf.flow_sigma_px, [0.8, 0.8], rtol=0.08)
 
 
-def test_process_noise_adapts_to_the_motion():
-    """A twist that changes by ~0.3 rad/s per frame raises Q of w far above its floor; a still
-    one lets it fall to the floor."""
-    rng = np.random.default_rng(4)
-    n = 400
-    u = rng.integers(0, CAM.width_px, n)
-    v = rng.integers(0, CAM.height_px, n)
-    J = flow_jacobian(CAM, u, v, rng.uniform(0.4, 1.5, n), 1 / 30)
-    q = {}
-    for name, step_radps in (("moving", 0.3), ("still", 0.0)):
-        kf = VelocityKF(
-            VelocityKFConfig(weight_flow=False, adapt_process_noise=True, motion_model="constant")
-        )
-        twist = np.zeros(6)
-        for _ in range(60):
-            twist[3:6] += rng.normal(0.0, step_radps, 3)
-            y = J @ twist + rng.normal(0.0, 0.3, (n, 2))
-            assert kf.step(FlowMeasurement(y_px=y, J=J, u_px=u, v_px=v))
-        q[name] = kf.q_diag[3:6]
-    assert (q["moving"] > 0.02).all()
-    np.testing.assert_allclose(q["still"], 0.1 * 0.01, rtol=1e-6)
-
-
-def test_midpoint_timing_reports_the_twist_at_the_frame():
-    """A twist changing linearly in time: the flow of (k-1, k] measures the twist at k - 1/2
-    exactly; with ``midpoint_timing`` the reported twist is the one at k, without it the one at
-    k - 1/2 (the reference)."""
-    rng = np.random.default_rng(6)
-    n, dt = 300, 1 / 30
-    u = rng.integers(0, CAM.width_px, n)
-    v = rng.integers(0, CAM.height_px, n)
-    J = flow_jacobian(CAM, u, v, rng.uniform(0.4, 1.5, n), dt)
-    rate = np.r_[0.3, -0.2, 0.1, 3.0, -2.0, 1.5]  # per second
-
-    def twist(t):
-        return np.r_[0.1, 0.0, -0.1, 0.5, 1.0, -0.5] + rate * t
-
-    out = {}
-    for mid in (True, False):
-        kf = VelocityKF(
-            VelocityKFConfig(
-                weight_flow=False,
-                midpoint_timing=mid,
-                motion_model="constant",
-                cov_flow=(1e-6, 1e-6),
-                noise_reference_width_px=None,
-                sigma_linear=(10.0,) * 3,
-                sigma_angular=(10.0,) * 3,
-            )
-        )
-        for k in range(1, 6):
-            y = J @ twist((k - 0.5) * dt)
-            assert kf.step(FlowMeasurement(y_px=y, J=J, u_px=u, v_px=v), t_s=k * dt, dt_s=dt)
-        out[mid] = kf.x_frame
-    np.testing.assert_allclose(out[True], twist(5 * dt), atol=1e-6)
-    np.testing.assert_allclose(out[False], twist(4.5 * dt), atol=1e-6)
-
-
 @pytest.mark.parametrize("noise_px", [0.0, 0.1])
 def test_constant_acceleration_model_reports_the_twist_at_the_frame(noise_px):
     """A twist with a constant rate, flow measured with (or without) pixel noise: with
-    ``motion_model = "constant_acceleration"`` the twist reported at k (``x_frame``) is the
+    the constant-acceleration model (``motion_model = "auto"``'s second model) the twist
+    reported at k (``x_frame``) is the
     truth at k within a quarter of the half-frame lag ``|rate| dt / 2`` after 15 frames, and
     the interval mean handed to the UKF (``x``) is the truth at k - 1/2; the constant model
     reports the interval mean as the twist at k (the lag)."""
@@ -420,7 +362,7 @@ def test_constant_acceleration_model_reports_the_twist_at_the_frame(noise_px):
 
     errors = {}
     for model in ("constant", "constant_acceleration"):
-        kf = VelocityKF(VelocityKFConfig(motion_model=model), CAM.width_px)
+        kf = VelocityKF(VelocityKFConfig(), CAM.width_px, model)
         err_at_k = []
         for k in range(1, 31):
             y = J @ twist((k - 0.5) * dt) + rng.normal(0.0, noise_px, (n, 2))
@@ -434,15 +376,15 @@ def test_constant_acceleration_model_reports_the_twist_at_the_frame(noise_px):
     assert (errors["constant"] > 0.7 * lag).all(), errors
 
 
-def test_constant_acceleration_model_needs_the_frame_times_and_excludes_midpoint_timing():
-    kf = VelocityKF(VelocityKFConfig(motion_model="constant_acceleration"))
+def test_constant_acceleration_model_needs_the_frame_times():
+    kf = VelocityKF(VelocityKFConfig(), None, "constant_acceleration")
     J = flow_jacobian(CAM, [100, 200, 300], [100, 200, 150], [1.0, 1.0, 1.0], 1 / 30)
     zeros = np.zeros(3, np.int64)
     meas = FlowMeasurement(y_px=np.zeros((3, 2)), J=J, u_px=zeros, v_px=zeros)
     with pytest.raises(ValueError, match="needs the frame time"):
         kf.step(meas)
-    with pytest.raises(ConfigError, match="midpoint_timing"):
-        VelocityKFConfig(motion_model="constant_acceleration", midpoint_timing=True)
+    with pytest.raises(ConfigError, match="motion_model must be 'constant' or 'auto'"):
+        VelocityKFConfig(motion_model="constant_acceleration")  # type: ignore[arg-type]
 
 
 def _rms_w_error_on_a_turning_small_object(

@@ -148,7 +148,7 @@ def test_constant_acceleration_starts_from_the_first_flow():
     noise with it (91 cm/s on frame 1 of TUM room1 at 640x360, docs/roft.md)."""
     rng = np.random.default_rng(6)
     truth = np.r_[0.9, -0.8, 0.1, 2.0, -3.0, 1.5]
-    kf = VelocityKF(VelocityKFConfig(motion_model="constant_acceleration"), CAM.width_px)
+    kf = VelocityKF(VelocityKFConfig(), CAM.width_px, "constant_acceleration")
     (reported,) = _run([kf], lambda k: truth, 12, rng, 0.05)
     err = np.abs(reported - truth)
     assert (err[:, :3] < 0.01).all(), err[:, :3].max(axis=0)
@@ -164,8 +164,6 @@ def test_make_velocity_filter_and_the_auto_settings():
     zeros = np.zeros(3, np.int64)
     with pytest.raises(ValueError, match="needs the frame time"):
         auto.step(FlowMeasurement(y_px=np.zeros((3, 2)), J=J, u_px=zeros, v_px=zeros))
-    with pytest.raises(ConfigError, match="midpoint_timing"):
-        VelocityKFConfig(motion_model="auto", midpoint_timing=True)
     with pytest.raises(ConfigError, match="selection"):
         VelocityKFConfig(selection_margin=0.0)
     with pytest.raises(ConfigError, match="selection_memory"):

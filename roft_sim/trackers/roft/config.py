@@ -62,34 +62,26 @@ class MaskSyncConfig:
     """How a tracked sub-pixel position picks its pixel: ``nearest`` (the pixel whose centre is
     nearest, right for pixel centres at integer coordinates) or ``truncate`` (C truncation, as the
     reference, a bias of half a pixel towards the top-left)."""
-    cleanup: Literal["none", "close", "majority"] = "close"
-    """Clean-up of the warped mask on 3x3 neighbourhoods after every flow step. ``close``
-    (morphological closing) fills the holes forward splatting leaves where the object grows in
-    the image and never removes a pixel; ``majority`` (a binary median, the previous default)
-    also removes points scattered by flow noise, and under noisy flow it erodes the mask a
-    little at every step until it collapses (sigma = 1 px: 27 667 px to 344 px); ``none`` is
+    cleanup: Literal["none", "close"] = "close"
+    """Clean-up of the warped mask after every flow step. ``close`` (a 3x3 morphological
+    closing) fills the holes forward splatting leaves where the object grows in the image and
+    never removes a pixel; the pixels it fills inside the mask (3x3 neighbourhood wholly in the
+    closed mask) become new tracked points, so the boundary stays where the points are. A binary
+    median, which also removes points scattered by flow noise, erodes the mask a little at every
+    step under noisy flow until it collapses (sigma = 1 px: 27 667 px to 344 px). ``none`` is
     the reference: a delayed mask is tracked point by point through all buffered flows and
     rasterised once."""
     subpixel: bool = True
     """Keep the tracked points' sub-pixel positions from frame to frame (the mask of each
     frame is their rasterisation); False re-rasterises the mask at every flow step, which
-    rounds away motion smaller than half a pixel per frame. Needs ``cleanup`` ``none`` or
-    ``close``."""
-    new_points: Literal["interior", "closing"] = "interior"
-    """With ``subpixel`` and ``cleanup = "close"``: which pixels the closing adds become new
-    tracked points. ``interior``: only those whose 3x3 neighbourhood lies wholly in the closed
-    mask (the holes splatting leaves where the object grows in the image), so the clean-up
-    never moves the boundary and the mask's area follows the tracked points. ``closing``: every
-    pixel the closing adds (the previous default): boundary concavities filled by one closing
-    become points and the next closing starts from them, so under flow noise the mask grew by
-    about a pixel ring per frame (1.6x the object after 12 frames of propagation on TUM room1,
-    2.8x after 48 without a new mask)."""
+    rounds away motion smaller than half a pixel per frame."""
 
     def __post_init__(self) -> None:
-        if self.subpixel and self.cleanup == "majority":
+        if self.cleanup not in ("none", "close"):
+            raise ConfigError(f"mask.cleanup must be 'none' or 'close', got {self.cleanup!r}")
+        if self.rounding not in ("nearest", "truncate"):
             raise ConfigError(
-                "mask.subpixel = true tracks points and cannot apply the binary median "
-                "(cleanup = 'majority'); use cleanup = 'close' or 'none', or subpixel = false"
+                f"mask.rounding must be 'nearest' or 'truncate', got {self.rounding!r}"
             )
 
 
@@ -139,17 +131,6 @@ class VelocityKFConfig:
     """Count the pixels sampled inside one flow grid cell (e.g. the 4x4 cells of NVOF) as one
     measurement (their weights are divided by their number): they read the same vector, and
     counting them as independent makes the covariance too small."""
-    adapt_process_noise: bool = False
-    """Innovation-based process-noise adaptation: Q per frame is the running mean (over
-    ``adaptation_frames``) of ``(x_ls - x)^2 - P - P_ls`` per component (x_ls the
-    measurement-only estimate of the interval: covariance matching), floored by
-    ``sigma_linear`` / ``sigma_angular`` scaled by ``process_noise_floor``. Off by default:
-    measured on the captured and synthetic sequences it did not help (docs/roft.md); the
-    reference's Q (0.1 per frame) already leaves the filter almost memoryless."""
-    adaptation_frames: float = 8.0
-    """Time constant of the running mean of the process-noise adaptation [frames]."""
-    process_noise_floor: float = 0.01
-    """With adaptation, Q never drops below this fraction of sigma_linear / sigma_angular."""
     depth_maximum_m: float = 2.0
     """Pixels with depth outside (0, depth_maximum_m) are not used [m]."""
     subsampling_stride: int = 35
@@ -157,7 +138,8 @@ class VelocityKFConfig:
     ``subsampling_radius``; a stride over the list, applied before validity filtering), at
     ``noise_reference_width_px`` (scaled to the actual width, at least 1)."""
     weight_flow: bool = True
-    """Robust Laplacian reweighting of each pixel's noise by its innovation norm."""
+    """Robust Laplacian reweighting of each pixel's noise by its innovation norm (the
+    reference's ``weight_flow``)."""
     reweighting_pairs: Literal["correct", "reference"] = "correct"
     """How the median and spread of the innovation norms are computed: ``correct`` pairs
     (du_j, dv_j) of the same pixel; ``reference`` reproduces the reference's column-major
@@ -243,29 +225,17 @@ class VelocityKFConfig:
     twist_covariance_to_ukf: bool = True
     """Add this filter's covariance to the pose UKF's velocity measurement noise (its
     ``meas_cov_v`` / ``meas_cov_w`` then act as floors); False: the fixed values only."""
-    midpoint_timing: bool = False
-    """The flow F_k measures the mean twist over (k-1, k], the twist at k - 1/2. True: the
-    twist REPORTED for frame k (``Estimate.spatial_twist``) is carried half an interval forward
-    with the rate of change given by ``midpoint_rate``; False: the mean over the interval is
-    reported as the twist at k (the reference; it trails the motion by half a frame: with
-    ground-truth inputs on TUNING TUM room1 e_v is 4.0 cm/s against the truth at k and 1.0 against
-    the truth at k - 1/2). The pose UKF always receives the interval mean (see
-    ``pose.integrate_interval_velocity``), so the pose estimates do not depend on this switch.
-    Off by default: with the filtered rate it lowered e_v on TUNING (GT inputs 5.6 to 4.3 cm/s,
-    default inputs 26.2 to 25.2) but not on EVALUATION (default inputs e_v 52.7 to 54.1, e_w
-    103.8 to 105.5; GT inputs TUM room4 e_v 3.05 to 3.27); docs/roft.md."""
-    midpoint_rate: Literal["difference", "filtered"] = "filtered"
-    """How ``midpoint_timing`` estimates the rate of change it carries the twist forward with:
-    ``difference`` of the last two corrected twists (noisy), or ``filtered``: a constant-rate
-    Kalman filter per component (roft_sim/trackers/roft/twist_rate.py) whose measurement noise
-    adapts to the flow (covariance matching on its own prediction errors, floored by the
-    velocity KF's variance), so the extrapolation fades with noisy flow."""
     rate_psd_linear: float = 300.0
-    """``filtered``: spectral density of the random walk of d(v_o)/dt [(m/s^2)^2/s]."""
+    """``auto``'s constant-acceleration model: spectral density of the random walk of
+    d(v_o)/dt [(m/s^2)^2/s]."""
     rate_psd_angular: float = 1000.0
-    """``filtered``: spectral density of the random walk of dw/dt [(rad/s^2)^2/s]."""
+    """``auto``'s constant-acceleration model: spectral density of the random walk of dw/dt
+    [(rad/s^2)^2/s]."""
     rate_noise_memory: float = 30.0
-    """``filtered``: memory of the measurement-noise estimate [frames]."""
+    """``auto``'s constant-acceleration model: memory of its twist-noise estimate [updates]:
+    the part of the interval-mean twist's error that the per-pixel flow noise does not explain
+    (errors the pixels share, a stale mask or smoothed flow), estimated by covariance matching
+    on its innovations, so that they are not read as acceleration."""
     remeasure_on_fresh_mask: bool = True
     """When a delayed mask arrives (captured at c < k), measure the flows F_{c+1} ... F_{k-1}
     again on that mask warped to each frame (instead of on the older mask propagated further),
@@ -281,42 +251,24 @@ class VelocityKFConfig:
     initial prior (``initial_v_mps`` / ``initial_w_radps``, e.g. frame 0, which has no flow):
     the reference writes it. False: None until the filter has used a flow measurement (the
     harness then scores those frames' velocity from nothing: docs/metrics.md)."""
-    motion_model: Literal["constant", "constant_acceleration", "auto"] = "auto"
+    motion_model: Literal["constant", "auto"] = "auto"
     """``constant``: the state is one twist, a random walk with ``sigma_linear`` /
     ``sigma_angular`` per frame, and the flow F_k measures it directly (the reference: the
-    interval mean is the twist of frame k, half a frame late). ``constant_acceleration``: the
-    state is the twist AT the frame time and its rate of change (12-D), the rate a random walk
-    (white jerk, spectral densities ``rate_psd_linear`` / ``rate_psd_angular``), and F_k
-    measures the interval mean ``twist_k - rate_k dt / 2`` (exact for a constant rate), so the
-    filter itself estimates the twist at k; the first flow initialises it (twist = the pixels'
-    interval mean, rate at its prior); the pose UKF receives the interval mean. With
-    ground-truth inputs it meets e_v <= 3 cm/s on TUM room1 at 320x180, with the default
-    (noisy) inputs it costs ADD-AUC (stress benchmark, paper faults, TUNING 62.8 -> 50.3 %),
-    because the rate follows the flow's coloured errors. ``auto`` (default): both run side by
-    side on the same pixels (roft_sim/trackers/roft/velocity_selector.py); the pose UKF gets
-    the constant model's interval mean (so the poses are the constant model's), and the
-    REPORTED twist is the mean of the two models' twists at k weighted by how well each
-    predicted the next flow: each model's prediction of the interval mean against the pixels'
-    own least-squares mean, moved to the fit's decoupling point and whitened by its covariance,
-    averaged over ``selection_memory`` updates (``L_c``, ``L_a``, per part: the linear
-    velocity at the decoupling point, the angular velocity); each part's constant-acceleration
-    weight is ``confidence / (1 + (L_a / (selection_margin L_c))^selection_sharpness)`` times
-    the same function of the current update's scores (``selection_instant_ratio``), the
-    confidence from the per-update log ratios (``selection_prior_updates``,
-    ``selection_log_ratio_clip``; velocity_selector.py). Excludes ``midpoint_timing`` and
-    ``adapt_process_noise``. Measured (docs/roft.md, round 6), GT inputs, 320x180 stress
-    sequences, e_v: TUNING TUM room1 5.42 (constant) -> 2.39 cm/s (round 5's selector 3.53);
-    default inputs TUNING: poses unchanged, e_v room1 15.60 -> 12.88 cm/s."""
-    adapt_twist_noise: bool = True
-    """``constant_acceleration``: add to the interval-mean twist's noise the part of its error
-    the per-pixel flow noise does not explain, estimated by covariance matching on the
-    filter's innovations over ``rate_noise_memory`` updates (roft_sim/trackers/roft/
-    velocity_kf.py), so that errors the pixels share (a stale mask, smoothed flow) are not
-    read as acceleration."""
+    interval mean is the twist of frame k, half a frame late). ``auto``: a constant and a
+    constant-acceleration model run side by side on the same pixels
+    (:mod:`roft_sim.trackers.roft.velocity_selector`). The constant-acceleration model's state
+    is the twist AT the frame time and its rate of change (white jerk, ``rate_psd_linear`` /
+    ``rate_psd_angular``); F_k measures its interval mean ``twist_k - rate_k dt / 2``. The pose
+    UKF gets the constant model's interval mean (alone, the acceleration model's rate follows
+    the flow's coloured errors and costs pose accuracy), and the REPORTED twist mixes the two
+    models' twists at k, weighted by how well each predicted the next flow
+    (``selection_*``): on the stress benchmark's tuning split, with ground-truth inputs, e_v
+    5.42 -> 2.39 cm/s on TUM room1, and with the default inputs 15.60 -> 12.88 cm/s, the poses
+    unchanged."""
     cov_rate0_linear: float = 100.0
-    """``constant_acceleration``: initial variance of d(v_o)/dt [(m/s^2)^2]."""
+    """``auto``'s constant-acceleration model: initial variance of d(v_o)/dt [(m/s^2)^2]."""
     cov_rate0_angular: float = 1000.0
-    """``constant_acceleration``: initial variance of dw/dt [(rad/s^2)^2]."""
+    """``auto``'s constant-acceleration model: initial variance of dw/dt [(rad/s^2)^2]."""
     selection_memory: float = 30.0
     """``auto``: memory of the running means of each model's whitened prediction error and of
     the per-update log ratios behind the confidence [updates]. Chosen on TUNING (stress medium,
@@ -360,16 +312,9 @@ class VelocityKFConfig:
             )
         _check_positive("velocity", "sigma_angular", self.sigma_angular, allow_zero=True)
         _check_positive("velocity", "cov_rate0", (self.cov_rate0_linear, self.cov_rate0_angular))
-        if self.motion_model not in ("constant", "constant_acceleration", "auto"):
+        if self.motion_model not in ("constant", "auto"):
             raise ConfigError(
-                f"velocity.motion_model must be 'constant', 'constant_acceleration' or 'auto', "
-                f"got {self.motion_model!r}"
-            )
-        if self.motion_model != "constant" and (self.midpoint_timing or self.adapt_process_noise):
-            raise ConfigError(
-                f"velocity.motion_model = {self.motion_model!r} already estimates the twist at "
-                "the frame with its own process noise; set midpoint_timing and "
-                "adapt_process_noise to false, or motion_model = 'constant' to use them"
+                f"velocity.motion_model must be 'constant' or 'auto', got {self.motion_model!r}"
             )
         if not (math.isfinite(self.selection_memory) and self.selection_memory >= 1):
             raise ConfigError(
@@ -421,10 +366,6 @@ class VelocityKFConfig:
         _check_optional_positive(
             "velocity", "noise_reference_width_px", self.noise_reference_width_px, "px"
         )
-        if not (math.isfinite(self.adaptation_frames) and self.adaptation_frames >= 1):
-            raise ConfigError(
-                f"velocity.adaptation_frames must be >= 1, got {self.adaptation_frames}"
-            )
         _check_positive("velocity", "depth_rate_sigma_min_m", (self.depth_rate_sigma_min_m,))
         _check_optional_positive(
             "velocity", "exact_flow_spread_px", self.exact_flow_spread_px, "px"
@@ -436,10 +377,6 @@ class VelocityKFConfig:
         if not 0.0 < self.occluder_probability < 1.0:
             raise ConfigError(
                 f"velocity.occluder_probability must be in (0, 1), got {self.occluder_probability}"
-            )
-        if not (math.isfinite(self.process_noise_floor) and 0 < self.process_noise_floor <= 1):
-            raise ConfigError(
-                f"velocity.process_noise_floor must be in (0, 1], got {self.process_noise_floor}"
             )
 
     def resolution_scale(self, width_px: int) -> float:
@@ -489,11 +426,6 @@ class PoseUKFConfig:
     state at k is the mean over (k-1, k], which is what the flow F_k measures, and a velocity
     measurement moves the pose of the same frame. False: the reference (the pose is integrated
     with the velocities of k-1; the orientation lags the flow by a frame)."""
-    pose_updates_velocity: bool = True
-    """Let a pose correction change the velocity states through their cross-covariance with
-    the pose (the reference). False: a Schmidt ("consider") update: the gain rows of v and w
-    are zeroed for pose measurements, so the velocities come from the flow alone and a replay
-    with a pose far from the integrated track does not kick them."""
     coast_correlation_time_v_s: float | None = 0.2
     """While the pose UKF gets no velocity measurement (the flow KF could not update: no mask
     or too few valid pixels, a dropped camera frame), its prediction carries the velocity v as
@@ -608,22 +540,22 @@ class PoseGateConfig:
     a 5 Hz network (the paper's) span, so the rule is the same at 5 Hz and slower; a faster
     network must contradict the track for as long, so a burst of correlated outliers (a
     flipped detection and its stale repeats: three in 0.1 s at 15 Hz) cannot override it
-    (docs/roft.md, "Round 11"). 0: the count alone."""
+    0: the count alone."""
     depth_override_coverage: float | None = 0.5
     """Adaptive gate with the depth outlier test: a pose the gate would reject re-initialises
-    the track instead (as ``reinitialise_unconfirmed`` does) when the depth shows that the
+    the track instead (as an unconfirmed track's failing pose does) when the depth shows that the
     track, not the pose, is off: rendered at the pose's capture frame, the pose covers at
     least this fraction of the frame's mask samples, the track less than half as many (its
     silhouette misses the object the mask and the depth see), and the track's mean depth error
     there is more than ``outlier_rejection.gamma`` times the pose's. The gate measures
     distance from the track, so a track that went wrong (initialised on a gross outlier that
     agreeing outliers then confirmed, or carried off by a wrong velocity) otherwise rejects
-    the correct poses until the streak rule lets one through, 12 of them at 30 Hz
-    (docs/roft.md, "Round 12"). The pose's orientation is taken only when it also fits the
+    the correct poses until the streak rule lets one through, 12 of them at 30 Hz. The pose's
+    orientation is taken only when it also fits the
     depth ``gamma`` times better than the track's orientation placed at the pose's position;
     otherwise the track keeps its orientation: a flip of a near-symmetric object fits the
     depth as well, and next to a track a few centimetres off it passes the coverage test
-    (taking it whole raised e_a by 46 deg on a held-out sequence, "Round 12"). None: off."""
+    (taking it whole raised e_a by 46 deg on a held-out sequence). None: off."""
     adaptive: bool = False
     """Replace the fixed bounds by a chi-square test (3 degrees of freedom each, position and
     rotation) on the pose's innovation against an isotropic variance: the exponentially
@@ -644,26 +576,13 @@ class PoseGateConfig:
     """Adaptive gate: how many accepted poses the prior counts for."""
     memory_poses: float = 10.0
     """Adaptive gate: time constant of the running mean, in accepted poses (older innovations
-    weigh ``(1 - 1 / memory_poses)^age``)."""
-    horizon_scaling: bool = True
-    """Adaptive gate: test a pose captured ``d`` frames after the last passing pose against the
-    spread times ``max(1, d / g)``, ``g`` the mean gap between passing poses (the filter's
-    drift grows with the time it only predicts), and let it enter the spread divided by that
-    factor. Without it, a filter that drifted during a stretch without poses gated the
-    correct poses that came back (:mod:`roft_sim.trackers.roft.innovation_gate`)."""
-    open_until_confirmed: bool = True
-    """Adaptive gate: until one pose has passed the test, poses that fail it are fused anyway
-    (the track is not confirmed: the pose that initialised the filter may be the outlier, e.g.
-    a flipped first detection, and gating against it locks out the correct poses that
-    follow)."""
-    reinitialise_unconfirmed: bool = True
-    """Adaptive gate, with ``open_until_confirmed``: a pose that fails the test while the track
-    is not confirmed RE-INITIALISES the pose (position and orientation at the pose, with the
-    initial covariance ``pose.cov_x0`` / ``cov_q0``; the velocities and their covariance are
-    kept) instead of being fused. Until a pose confirms it the track rests on one detection,
-    and fusing a detection that disagrees by up to 180 degrees is degenerate for the UKF (a
-    flipped first detection then took two to three more poses, 12-18 frames at 5 fps, to
-    correct); the re-initialised track is confirmed or replaced by the next pose."""
+    weigh ``(1 - 1 / memory_poses)^age``). The adaptive gate also tests a pose captured ``d``
+    frames after the last passing pose against the spread times ``max(1, d / g)`` (``g`` the
+    mean gap between passing poses: the filter's drift grows while it only predicts), and until
+    one pose has passed the test the track is not confirmed: a pose that fails it then
+    re-initialises the pose (the velocities are kept) instead of being gated, since the pose
+    that initialised the filter may be the outlier (a flipped first detection)
+    (:mod:`roft_sim.trackers.roft.innovation_gate`)."""
 
     def __post_init__(self) -> None:
         _check_positive("gate", "prior_translation_m", (self.prior_translation_m,))
@@ -713,63 +632,29 @@ class PoseSyncConfig:
 @dataclass(frozen=True, slots=True, kw_only=True)
 class CovarianceScaleConfig:
     """Calibration of the REPORTED covariance (``Estimate.covariance``) by online variance-scale
-    estimation (roft_sim/trackers/roft/covariance_scale.py; not in the reference). The velocity
-    blocks (v, w) are multiplied by a forgetting-factor mean of the change of the twist
-    measurement between frames, normalised by the two measurements' noise (floored at 1), plus
-    the persistent twist error (``persistent_twist``); the pose block (t, r) is calibrated as
-    ``pose_block`` says, starting from the detector-noise prior (``detector_prior``). The
+    estimation (:mod:`roft_sim.trackers.roft.covariance_scale`; not in the reference). The
     filter's means and its internal covariance are untouched, so the estimates are the same
-    with it on or off."""
+    with it on or off.
+
+    - Velocity blocks (v, w): multiplied by a forgetting-factor mean of the change of the twist
+      measurement from the last frame that had one (at most ``sync.horizon_frames`` back, so
+      dropped frames do not starve the statistic), normalised by the two measurements' noise
+      (floored at 1); plus the twist error that persists between poses: covariance matching on
+      the fused poses' innovations, the part of ``|nu|^2`` that the predicted covariance, the
+      excess and the configured pose noise do not explain, divided by the squared time since
+      the previous fused pose.
+    - Pose block (t, r): the poses' true noise by covariance matching (the configured R times a
+      running factor), starting from the adaptive gate's prior (``gate.prior_*``), plus the
+      covariance the filter's gain leaves unaccounted (Joseph form with the estimated noise); a
+      pose (re)initialised from one detection is reported with that noise as its error.
+    """
 
     enable: bool = True
     """Scale the reported covariance; False reports the UKF's covariance as it is (the
     reference)."""
-    pose_block: Literal["scale", "excess"] = "excess"
-    """How the pose block (t, r) is calibrated: ``scale`` multiplies it by the mean NIS per
-    dimension of the fused poses (right when P, Q and R are off by one common factor);
-    ``excess`` estimates the poses' true noise by covariance matching (the configured R times
-    a running factor) and adds the covariance the filter's gain leaves unaccounted (Joseph form
-    with the estimated noise), right when the pose noise alone is mis-specified."""
     memory_measurements: float = 20.0
     """Memory of the forgetting-factor means [measurements of the block]: forgetting factor
     ``1 - 1 / memory``."""
-    detector_prior: bool = True
-    """Start the pose-noise estimate from the adaptive gate's prior (``gate.prior_translation_m``,
-    ``gate.prior_rotation_deg``, ``gate.prior_weight``) instead of the configured pose noise,
-    and report a pose (re)initialised from one detection with that noise as its error (the
-    excess over the filter's initial covariance): a first detection tens of degrees off is
-    then inside the reported covariance until fused poses' innovations replace the prior.
-    False: factor 1 and no excess at the start (the filter's initial covariance as it is)."""
-    persistent_twist: bool = True
-    """Add to the velocity blocks the variance of the twist's error that persists between
-    poses: covariance matching on the fused poses' innovations, the part of ``|nu|^2`` that
-    the predicted covariance, the excess and the estimated pose noise (the configured one
-    times its running factor, before this pose) do not explain, divided by the squared time
-    since the previous fused pose (the prediction integrates the twist over it). The
-    twist-change factor cannot see such errors. False: the velocity blocks are the UKF's
-    times the twist-change factor."""
-    persistent_twist_noise: Literal["configured", "estimated"] = "configured"
-    """The pose noise a fused pose's innovation is explained by before the rest is sampled as
-    persistent twist error: ``configured`` (``pose.meas_cov_x``, ``pose.meas_cov_q``, the
-    floor of the noise estimate) or ``estimated`` (that times the running pose-noise factors
-    as estimated before this pose). The split between pose noise and twist error is not
-    identifiable from one innovation per pose, and the pose-noise estimate is made from the
-    same innovations (starting from the detector prior, ``detector_prior``): with ``estimated``
-    it takes their mean level, so the samples keep only their fluctuation; while the prior is
-    not yet forgotten (few fused poses, as under ``chaos``), or after a pose outlier that
-    passed the gate inflated it, it explains every innovation and the samples are all 0
-    (TUNING tum-room1 ``chaos``: none of 12 fused poses gave a positive angular sample,
-    velocity NEES 24.8; docs/roft.md, "Consistency under camera faults"). ``configured`` gives
-    the twist every part of the innovation the filter's own noise model does not explain
-    (conservative for the velocity blocks; the pose block keeps its own estimate)."""
-    twist_change_over_gaps: bool = True
-    """Compare a twist with the last twist measured before it (at most
-    ``sync.horizon_frames`` back) when the frame before has none (a dropped camera frame, or a
-    frame whose flow the velocity KF could not use): the change then spans the gap,
-    ``E[d d^T] = R_k + R_(k-m) + Cov(x_k - x_(k-m))``, conservative by the motion over the m
-    frames. False: only consecutive frames count, and every gap removes the
-    samples around it, so the factor decays towards 1 across the frames that follow a camera
-    fault (measured: docs/roft.md, "Consistency under camera faults")."""
     min_factor: float = 1e-2
     """The smallest factor applied (guards a run of lucky innovations)."""
     max_factor: float = 1e6

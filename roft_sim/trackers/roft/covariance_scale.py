@@ -23,19 +23,18 @@ flow-based twist. What is used, per block (each factor a :class:`ScaleEstimate`)
   measurement between consecutive frames normalised by the two measurements' noise
   (:func:`twist_difference`), floored at 1 (it cannot see errors that persist from frame to
   frame, so it may only inflate);
-- velocity (v, w), ``persistent_twist``: the twist's error that stays the same from frame to
+- velocity (v, w), persistent error: the twist's error that stays the same from frame to
   frame shifts the pose prediction by its integral since the last fused pose, so the part of
-  a fused pose's innovation that the prediction's covariance, the excess and the estimated pose
+  a fused pose's innovation that the prediction's covariance, the excess and the configured pose
   noise leave unexplained, divided by the squared time since that pose, samples its variance
   (:func:`persistent_twist_samples`); a forgetting mean of the samples is added to the
   velocity blocks;
-- pose (t, r), ``pose_block = "excess"`` (default): the poses' true noise is estimated by
-  covariance matching (the NIS of the fused poses), the filter's own correction is replayed in
-  Joseph form with that noise (:func:`pose_excess_after`), and the covariance it misses is
-  added; ``pose_block = "scale"`` multiplies the block by the pose NIS factor instead. With
-  ``detector_prior`` the noise estimate starts from the adaptive gate's prior spread
-  (:func:`detector_noise_prior`), and a pose (re)initialised from one detection carries that
-  noise as its excess (:func:`restart_pose_excess`) until fused poses replace it.
+- pose (t, r): the poses' true noise is estimated by covariance matching (the NIS of the fused
+  poses), the filter's own correction is replayed in Joseph form with that noise
+  (:func:`pose_excess_after`), and the covariance it misses is added. The noise estimate
+  starts from the adaptive gate's prior spread (:func:`detector_noise_prior`), and a pose
+  (re)initialised from one detection carries that noise as its excess
+  (:func:`restart_pose_excess`) until fused poses replace it.
 
 The reported covariance is ``D C D + E`` (:func:`scaled_estimate_covariance`: ``D`` the
 square roots of the factors per 3-D block, ``E`` the pose excess and the persistent twist
@@ -118,7 +117,7 @@ class BlockScales:
     v: ScaleEstimate
     w: ScaleEstimate
     pose_excess: F64
-    """(6, 6) with ``pose_block = "excess"``: the covariance of the pose (t, r) the filter's
+    """(6, 6) the covariance of the pose (t, r) the filter's
     own misses (its true error covariance minus its covariance), from the last fused pose, or
     from the detector-noise prior when the pose was (re)initialised from one detection."""
     v_persistent: ScaleEstimate = ScaleEstimate(0.0, 1.0)
@@ -290,18 +289,15 @@ def scaled_estimate_covariance(
     ``D = diag(sqrt(s_t) I3, sqrt(s_r) I3, sqrt(s_v) I3, sqrt(s_w) I3)``, the pose factors
     clipped to ``[min_factor, max_factor]``, the velocity factors to ``[1, max_factor]``: the
     twist-change statistic is blind to errors that persist from frame to frame, so it may only
-    inflate the filter's own velocity covariance, never shrink it. With ``pose_block =
-    "excess"`` the pose excess is added to the (t, r) block; with ``persistent_twist`` the
-    persistent twist error's variance (per axis) to the diagonal of the (v, w) blocks."""
+    inflate the filter's own velocity covariance, never shrink it. The pose block is not
+    scaled: its excess is added to it; the persistent twist error's variance (per axis) is
+    added to the diagonal of the (v, w) blocks."""
     lower = np.array([config.min_factor, config.min_factor, 1.0, 1.0])
     s = np.clip(scales.factors(), lower, config.max_factor)
-    if config.pose_block == "excess":
-        s[:2] = 1.0
+    s[:2] = 1.0
     d = np.repeat(np.sqrt(s), 3)
     out: F64 = covariance * d[:, None] * d[None, :]
-    if config.pose_block == "excess":
-        out[:6, :6] += scales.pose_excess
-    if config.persistent_twist:
-        persistent = [scales.v_persistent.factor, scales.w_persistent.factor]
-        out[6:, 6:] += np.diag(np.repeat(persistent, 3))
+    out[:6, :6] += scales.pose_excess
+    persistent = [scales.v_persistent.factor, scales.w_persistent.factor]
+    out[6:, 6:] += np.diag(np.repeat(persistent, 3))
     return 0.5 * (out + out.T)  # exactly symmetric (the products round differently)

@@ -1,5 +1,5 @@
 """The adaptive pose gate: a chi-square test of a pose's innovation against the spread of the
-innovations the gate accepted before (``gate.adaptive``; docs/roft.md, "The pose gate").
+innovations the gate accepted before (``gate.adaptive``; docs/roft.md).
 
 The innovation of a pose captured at frame c is its difference from the filter's prediction at
 c: ``nu_p = p_pose - p_pred`` [m] and ``nu_r = 2 log(q_pose ⊗ q_pred^*)`` [rad] (left rotation
@@ -16,17 +16,17 @@ off by 15 degrees and the flow-integrated orientation drifts, the gate follows, 
 180-degree flip or a 30 cm jump still stands out. Poses accepted only because the rejection
 streak ran out (``max_consecutive_rejections``) do not enter ``s^2``.
 
-With ``gate.horizon_scaling`` the spread is per typical prediction horizon: a pose captured
+The spread is per typical prediction horizon: a pose captured
 ``d`` frames after the last pose that passed is tested against ``s^2 max(1, d / g)``, ``g`` the
 running mean of the frames between passing poses, and enters ``s^2`` divided by that factor. The
 filter's drift between poses grows with the time it only predicts (a random walk's variance in
 proportion to it), so after a long stretch without poses (a blackout, a detector that lost the
 object) the gate does not lock out the detections that would correct a filter that drifted.
 
-Until one pose has passed the test the track is not confirmed (``gate.open_until_confirmed``):
-a pose that fails is fused anyway, because the pose that initialised the filter may itself be
-the outlier (a flipped first detection would otherwise lock out the correct poses that follow
-until the rejection streak runs out).
+Until one pose has passed the test the track is not confirmed: a pose that fails then
+re-initialises the pose instead of being gated, because the pose that initialised the filter
+may itself be the outlier (a flipped first detection would otherwise lock out the correct poses
+that follow until the rejection streak runs out).
 
 The spread is a value stored per frame with the beliefs, so a replay from a delayed pose's
 capture frame restores it exactly.
@@ -101,14 +101,9 @@ def squared_innovations(
 
 def horizon_factor(gate: PoseGateConfig, spread: InnovationSpread, capture_k: int | None) -> float:
     """``max(1, d / g)`` for a pose captured at ``capture_k``, ``d`` frames after the last
-    passing pose and ``g`` the mean gap between passing poses; 1 without
-    ``gate.horizon_scaling``, before two poses have passed, or without a capture frame."""
-    if (
-        not gate.horizon_scaling
-        or capture_k is None
-        or spread.last_frame < 0
-        or spread.gap_frames <= 0.0
-    ):
+    passing pose and ``g`` the mean gap between passing poses; 1 before two poses have passed
+    or without a capture frame."""
+    if capture_k is None or spread.last_frame < 0 or spread.gap_frames <= 0.0:
         return 1.0
     return max(1.0, (capture_k - spread.last_frame) / spread.gap_frames)
 
@@ -123,12 +118,12 @@ def adaptive_gate_test(
     """Whether the innovation passes the test, and the spread after it.
 
     Args:
-        gate: the gate's settings (``probability``, ``memory_poses``, ``horizon_scaling``).
+        gate: the gate's settings (``probability``, ``memory_poses``).
         spread: the spread before this pose.
         squared: ``(|nu_p|^2 [m^2], |nu_r|^2 [rad^2])`` (:func:`squared_innovations`).
         predicted_variance: mean diagonal of the filter's predicted position [m^2] and rotation
             [rad^2] covariance blocks.
-        capture_k: the pose's capture frame (for ``horizon_scaling``; None: no scaling).
+        capture_k: the pose's capture frame (for the horizon scaling; None: no scaling).
 
     Returns:
         ``(passes, spread)``: the spread is updated with the innovation (divided by the

@@ -18,8 +18,8 @@ dropped. Differences from the reference (see docs/roft.md):
 - by default the tracked points keep their sub-pixel positions from frame to frame
   (:class:`TrackedPoints`, ``subpixel = true``) and the mask is closed on 3x3 neighbourhoods
   after every step (``cleanup = "close"``), which fills the holes splatting leaves where the
-  object grows and never removes a pixel (the binary median, ``cleanup = "majority"``, removed
-  points scattered by flow noise until the mask collapsed); the reference re-warps the mask
+  object grows and never removes a pixel (a binary median would remove points scattered by
+  flow noise until the mask collapsed); the reference re-warps the mask
   image from integer pixels every frame with no clean-up (``subpixel = false``,
   ``cleanup = "none"``);
 - a delayed mask is warped through the buffered flows from ITS capture frame to now (any delay,
@@ -31,11 +31,13 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
 from roft_sim.records import FlowField, MaskDetection
 from roft_sim.trackers.roft.config import MaskSyncConfig
+from roft_sim.trackers.roft.medians import median
 
 __all__ = [
     "PixelSet",
@@ -56,6 +58,20 @@ _FLOW_INVALID_ABOVE_PX = 1e9
 
 
 @dataclass(frozen=True, slots=True)
+class MaskWindow:
+    """A mask as a 0/1 bitmap of a window of the image: ``bits[r, c]`` is pixel
+    ``(r0 + r, c0 + c)``. The window may reach beyond the image; no pixel outside it is set.
+    Never changed once made."""
+
+    bits: NDArray[np.uint8]
+    """(rows, cols) 0 or 1."""
+    r0: int
+    """Image row of the window's first row."""
+    c0: int
+    """Image column of the window's first column."""
+
+
+@dataclass(frozen=True, slots=True)
 class PixelSet:
     """The pixels of a mask in row-major order: linear indices ``v * W + u`` (sorted, unique)
     with their columns and rows."""
@@ -68,6 +84,9 @@ class PixelSet:
     """(N,) int64 rows."""
     shape: tuple[int, int]
     """(H, W) of the image."""
+    window: MaskWindow | None = field(default=None, compare=False, repr=False)
+    """The same mask as a window bitmap when it was made from one (morphology then needs no
+    new bitmap)."""
 
     @classmethod
     def from_mask(cls, mask: NDArray[np.bool_]) -> PixelSet:
@@ -111,18 +130,33 @@ def _complex_flow(flow: FlowField) -> NDArray[np.complex64]:
     return f.view(np.complex64).reshape(-1)
 
 
-def lookup_flow(flow: FlowField, u: I64, v: I64) -> tuple[NDArray[np.complex64], NDArray[np.bool_]]:
+def lookup_flow(
+    flow: FlowField,
+    u: NDArray[np.integer],
+    v: NDArray[np.integer],
+    index: NDArray[np.integer] | None = None,
+) -> tuple[NDArray[np.complex64], NDArray[np.bool_]]:
     """Flow ``du + i dv`` ``(N,)`` at integer pixels inside the image and its validity (block-
     nearest on the flow grid; non-finite vectors, magnitudes >= 1e9 and cells marked invalid or
-    outside the grid are invalid)."""
+    outside the grid are invalid).
+
+    Args:
+        flow: the flow field.
+        u, v: (N,) columns and rows of the pixels [px].
+        index: (N,) their row-major indices ``v * W + u`` in an image of the flow's size, when
+            the caller has them (a dense flow is then read without computing them).
+    """
     g = flow.grid_px
     hg, wg = flow.flow_px.shape[:2]
-    r, c = (v, u) if g == 1 else (v // g, u // g)
-    lin = r * wg + c
     inside = None
-    if u.size and (hg * g < v.max() + 1 or wg * g < u.max() + 1):
-        inside = (r < hg) & (c < wg)
-        lin = np.where(inside, lin, 0)
+    if g == 1 and index is not None:
+        lin = index
+    else:
+        r, c = (v, u) if g == 1 else (v // g, u // g)
+        lin = r * wg + c
+        if u.size and (hg * g < v.max() + 1 or wg * g < u.max() + 1):
+            inside = (r < hg) & (c < wg)
+            lin = np.where(inside, lin, 0)
     f = np.take(_complex_flow(flow), lin)
     ok = np.abs(f) < _FLOW_INVALID_ABOVE_PX  # False for NaN and inf
     if inside is not None:
@@ -149,38 +183,59 @@ def _to_pixels(
     return inside, (u + off).astype(np.int64), (v + off).astype(np.int64)
 
 
-def _dilate(a: NDArray[np.bool_]) -> NDArray[np.bool_]:
-    """Dilation by the 3x3 square (separable)."""
-    out = a.copy()
-    out[1:, :] |= a[:-1, :]
-    out[:-1, :] |= a[1:, :]
-    b = out.copy()
-    out[:, 1:] |= b[:, :-1]
-    out[:, :-1] |= b[:, 1:]
-    return out
+_SQUARE_3 = np.ones((3, 3), dtype=np.uint8)
+"""The 3x3 structuring element of the mask clean-up."""
 
 
-def _erode(a: NDArray[np.bool_]) -> NDArray[np.bool_]:
-    """Erosion by the 3x3 square; the window is padded, so nothing set touches its border."""
-    out = a.copy()
-    out[1:, :] &= a[:-1, :]
-    out[:-1, :] &= a[1:, :]
-    b = out.copy()
-    out[:, 1:] &= b[:, :-1]
-    out[:, :-1] &= b[:, 1:]
-    return out
+def _window_bitmap(
+    u: I64, v: I64, pad: int
+) -> tuple[NDArray[np.uint8], NDArray[np.intp], int, int]:
+    """A 0/1 bitmap of the pixels ``(u, v)`` (N,) on their bounding box grown by ``pad`` on each
+    side (it may extend beyond the image), the pixels' flat indices in it, and the box's first
+    row and column in the image."""
+    r0, c0 = int(v.min()) - pad, int(u.min()) - pad
+    rows = int(v.max()) - r0 + 1 + pad
+    cols = int(u.max()) - c0 + 1 + pad
+    flat = (v - r0) * cols + (u - c0)
+    return np.zeros((rows, cols), dtype=np.uint8), flat, r0, c0
 
 
-def _majority(a: NDArray[np.bool_]) -> NDArray[np.bool_]:
-    """3x3 binary median: set where at least 5 of the 9 pixels of the window are set."""
-    c = a.astype(np.uint8)
-    rows = c.copy()
-    rows[1:, :] += c[:-1, :]
-    rows[:-1, :] += c[1:, :]
-    out = rows.copy()
-    out[:, 1:] += rows[:, :-1]
-    out[:, :-1] += rows[:, 1:]
-    return out >= 5
+def mask_window(pixels: PixelSet) -> MaskWindow:
+    """The mask as a window bitmap: its own, or one on its bounding box."""
+    if pixels.window is not None:
+        return pixels.window
+    bits, flat, r0, c0 = _window_bitmap(pixels.u, pixels.v, 0)
+    bits.reshape(-1)[flat] = 1
+    return MaskWindow(bits, r0, c0)
+
+
+def _clip_to_image(window: NDArray[np.uint8], r0: int, c0: int, shape: tuple[int, int]) -> None:
+    """Clears, in place, the part of a bitmap whose top-left pixel is image pixel ``(r0, c0)``
+    that lies outside an image of ``shape`` (H, W)."""
+    h, w = shape
+    rows, cols = window.shape
+    if r0 < 0:
+        window[:-r0] = 0
+    if r0 + rows > h:
+        window[max(h - r0, 0) :] = 0
+    if c0 < 0:
+        window[:, :-c0] = 0
+    if c0 + cols > w:
+        window[:, max(w - c0, 0) :] = 0
+
+
+def _pixels_in_window(
+    window: NDArray[np.uint8], r0: int, c0: int, shape: tuple[int, int]
+) -> PixelSet:
+    """The set pixels of a 0/1 bitmap whose top-left pixel is image pixel ``(r0, c0)``, all
+    inside the image of ``shape`` (H, W), in row-major order (the bitmap is kept with them: do
+    not change it afterwards)."""
+    cols = window.shape[1]
+    flat = np.flatnonzero(window.view(np.bool_))
+    rr = flat // cols
+    cc = flat - rr * cols + c0
+    rr += r0
+    return PixelSet(rr * shape[1] + cc, cc, rr, shape, MaskWindow(window, r0, c0))
 
 
 def erode_pixels(pixels: PixelSet, radius_px: int) -> PixelSet:
@@ -193,60 +248,39 @@ def erode_pixels(pixels: PixelSet, radius_px: int) -> PixelSet:
     """
     if radius_px <= 0 or len(pixels) == 0:
         return pixels
-    h, w = pixels.shape
-    r = radius_px
-    r0, c0 = int(pixels.v.min()) - 1, int(pixels.u.min()) - 1
-    rows = int(pixels.v.max()) - r0 + 2
-    cols = int(pixels.u.max()) - c0 + 2
-    a = np.zeros((rows, cols), dtype=bool)
-    a.reshape(-1)[(pixels.v - r0) * cols + (pixels.u - c0)] = True
-    out = a.copy()
-    for s in range(1, r + 1):  # separable: rows, then columns
-        out[s:, :] &= a[:-s, :]
-        out[:-s, :] &= a[s:, :]
-        out[:s, :] = False
-        out[-s:, :] = False
-    b = out.copy()
-    for s in range(1, r + 1):
-        out[:, s:] &= b[:, :-s]
-        out[:, :-s] &= b[:, s:]
-        out[:, :s] = False
-        out[:, -s:] = False
-    flat = np.flatnonzero(out)
-    rr = flat // cols
-    cc = flat - rr * cols + c0
-    rr += r0
-    return PixelSet(rr * w + cc, cc, rr, (h, w))
+    window = mask_window(pixels)
+    return _pixels_in_window(_eroded(window.bits, radius_px), window.r0, window.c0, pixels.shape)
 
 
-CLEANUPS = ("none", "close", "majority")
+def _eroded(window: NDArray[np.uint8], radius_px: int) -> NDArray[np.uint8]:
+    """Erosion of a 0/1 bitmap by the (2r+1)^2 square, outside the bitmap counting as unset."""
+    size = 2 * radius_px + 1
+    kernel = np.ones((size, size), dtype=np.uint8)
+    out = cv2.erode(window, kernel, borderType=cv2.BORDER_CONSTANT, borderValue=0)
+    return np.asarray(out, dtype=np.uint8)  # the same array
+
+
+def _closed(window: NDArray[np.uint8]) -> NDArray[np.uint8]:
+    """Closing of a 0/1 bitmap by the 3x3 square (pad the bitmap by 2: its borders then never
+    matter)."""
+    return np.asarray(cv2.morphologyEx(window, cv2.MORPH_CLOSE, _SQUARE_3), dtype=np.uint8)
+
+
+CLEANUPS = ("none", "close")
 """Mask clean-ups after each warp step (see ``MaskSyncConfig.cleanup``)."""
 
 
 def _splat(u: I64, v: I64, shape: tuple[int, int], cleanup: str) -> PixelSet:
     """Unique sorted pixel set of integer positions already inside the image, optionally
-    cleaned up on the 3x3 neighbourhood (``close`` or ``majority``)."""
+    closed on the 3x3 neighbourhood (``close``)."""
     if u.size == 0:
         return PixelSet.empty(shape)
-    h, w = shape
-    pad = 2 if cleanup != "none" else 0
-    r0, c0 = int(v.min()) - pad, int(u.min()) - pad
-    rows = int(v.max()) - r0 + 1 + pad
-    cols = int(u.max()) - c0 + 1 + pad
-    window = np.zeros((rows, cols), dtype=bool)
-    window.reshape(-1)[(v - r0) * cols + (u - c0)] = True
+    window, flat, r0, c0 = _window_bitmap(u, v, 2 if cleanup != "none" else 0)
+    window.reshape(-1)[flat] = 1
     if cleanup == "close":
-        window = _erode(_dilate(window))
-    elif cleanup == "majority":
-        window = _majority(window)
-    flat = np.flatnonzero(window)  # much faster than the 2-D np.nonzero
-    rr = flat // cols
-    cc = flat - rr * cols + c0
-    rr += r0
-    if cleanup != "none" and (r0 < 0 or c0 < 0 or r0 + rows > h or c0 + cols > w):
-        keep = (rr >= 0) & (rr < h) & (cc >= 0) & (cc < w)
-        rr, cc = rr[keep], cc[keep]
-    return PixelSet(rr * w + cc, cc, rr, shape)
+        window = _closed(window)
+        _clip_to_image(window, r0, c0, shape)
+    return _pixels_in_window(window, r0, c0, shape)
 
 
 def warp_pixels(
@@ -264,10 +298,9 @@ def warp_pixels(
         rounding: ``nearest`` or ``truncate``: how a sub-pixel position picks its pixel, both
             for the flow lookup and for the landing pixel.
         cleanup: ``none``: chained tracking, each point keeps its sub-pixel position through all
-            flows and is rasterised once at the end (the reference); ``close`` or ``majority``:
-            the mask is rasterised and cleaned up on its 3x3 neighbourhoods after EACH flow
-            (morphological closing, or the binary median that fills splatting holes and removes
-            stray points).
+            flows and is rasterised once at the end (the reference); ``close``: the mask is
+            rasterised and closed on its 3x3 neighbourhoods after EACH flow (the closing fills
+            the holes splatting leaves).
 
     Returns:
         The mask in the frame the last flow ends at. Points that leave the image or hit an
@@ -316,9 +349,10 @@ class TrackedPoints:
     Between flow steps the points keep their float positions (no re-rasterisation, so motion
     of a fraction of a pixel per frame accumulates instead of being rounded away); the pixel
     set is their nearest pixels, closed on 3x3 neighbourhoods when asked, and the pixels the
-    closing adds inside the mask become new points at their centres (so a mask that grows in
-    the image keeps its density, while the boundary stays where the points are:
-    ``MaskSyncConfig.new_points``)."""
+    closing fills inside the mask (3x3 neighbourhood wholly in the closed mask) become new
+    points at their centres, so a mask that grows in the image keeps its density while its
+    boundary stays where the points are (promoting every filled pixel made the mask grow by
+    about a pixel ring per frame under flow noise)."""
 
     u_px: NDArray[np.float64]
     """(N,) columns of the points [px] (pixel centres at integer coordinates)."""
@@ -333,61 +367,65 @@ class TrackedPoints:
         return cls(pixels.u.astype(np.float64), pixels.v.astype(np.float64), pixels)
 
 
-def track_points(
-    points: TrackedPoints,
-    flow: FlowField,
-    *,
-    cleanup: str,
-    new_points: str = "interior",
-) -> TrackedPoints:
+def track_points(points: TrackedPoints, flow: FlowField, *, cleanup: str) -> TrackedPoints:
     """Moves sub-pixel points by one flow (looked up at the pixel each point lies in) and
     rasterises them to the nearest pixels, with ``close`` or no clean-up.
 
     Points that leave the image or meet an invalid flow vector are dropped; several points in
     one pixel are reduced to the first. ``cleanup = "close"`` fills the one-pixel holes that
-    splatting leaves where the object grows; unlike the binary median it never removes a
-    pixel, so flow noise that scatters the points cannot shrink the mask to nothing.
+    splatting leaves where the object grows; unlike a binary median it never removes a pixel,
+    so flow noise that scatters the points cannot shrink the mask to nothing.
 
     Args:
         points: the mask in the frame ``flow.from_k``.
         flow: one flow field.
         cleanup: ``none`` or ``close``.
-        new_points: which pixels the closing adds become tracked points: ``interior`` (those
-            whose 3x3 neighbourhood is wholly in the closed mask) or ``closing`` (all of them);
-            see ``MaskSyncConfig.new_points``.
     """
-    if new_points not in ("interior", "closing"):
-        raise ValueError(
-            f"track_points supports new_points 'interior' or 'closing', got {new_points!r}"
-        )
-    if cleanup not in ("none", "close"):
+    if cleanup not in CLEANUPS:
         raise ValueError(f"track_points supports cleanup 'none' or 'close', got {cleanup!r}")
     shape = points.pixels.shape
     h, w = shape
     u, v = points.u_px, points.v_px
-    ui = np.floor(u + 0.5).astype(np.int64)
-    vi = np.floor(v + 0.5).astype(np.int64)
-    f, ok = lookup_flow(flow, ui, vi)
-    u = u[ok] + f.real[ok]
-    v = v[ok] + f.imag[ok]
+    # every point lies in the image (u >= -0.5): truncation of u + 0.5 is its nearest pixel
+    ui = (u + 0.5).astype(np.int32)
+    vi = (v + 0.5).astype(np.int32)
+    dense = flow.grid_px == 1 and flow.flow_px.shape[:2] == shape
+    f, ok = lookup_flow(flow, ui, vi, vi * w + ui if dense else None)
+    if ok.all():
+        u = u + f.real
+        v = v + f.imag
+    else:
+        u = u[ok] + f.real[ok]
+        v = v[ok] + f.imag[ok]
     inside = (u >= -0.5) & (u < w - 0.5) & (v >= -0.5) & (v < h - 0.5)
-    u, v = u[inside], v[inside]
-    ui = np.floor(u + 0.5).astype(np.int64)
-    vi = np.floor(v + 0.5).astype(np.int64)
-    lin, first = np.unique(vi * w + ui, return_index=True)
+    if not inside.all():
+        u, v = u[inside], v[inside]
+    if u.size == 0:
+        return TrackedPoints(u, v, PixelSet.empty(shape))
+    ui = (u + 0.5).astype(np.int32)
+    vi = (v + 0.5).astype(np.int32)
+    pad = 2 if cleanup == "close" else 0
+    r0, c0 = int(vi.min()) - pad, int(ui.min()) - pad
+    rows = int(vi.max()) - r0 + 1 + pad
+    cols = int(ui.max()) - c0 + 1 + pad
+    # the first point in each pixel: the smallest point index landing there
+    n = u.size
+    owner = np.full(rows * cols, n, dtype=np.int32)
+    np.minimum.at(owner, (vi - r0) * cols + (ui - c0), np.arange(n, dtype=np.int32))
+    landed = owner < n
+    first = owner[landed]  # in row-major pixel order
     u, v = u[first], v[first]
-    if cleanup == "none" or lin.size == 0:
-        return TrackedPoints(u, v, PixelSet.from_index(lin, shape))
-    closed = _splat(ui[first], vi[first], shape, "close")
-    added = closed.index[~np.isin(closed.index, lin, assume_unique=True)]
-    if new_points == "interior" and added.size:
-        interior = erode_pixels(closed, 1).index
-        added = added[np.isin(added, interior, assume_unique=True)]
-    if added.size:
-        av = added // w
-        u = np.concatenate([u, (added - av * w).astype(np.float64)])
-        v = np.concatenate([v, av.astype(np.float64)])
-    return TrackedPoints(u, v, closed)
+    hit = landed.view(np.uint8).reshape(rows, cols)
+    if cleanup == "none":
+        return TrackedPoints(u, v, _pixels_in_window(hit, r0, c0, shape))
+    closed = _closed(hit)
+    _clip_to_image(closed, r0, c0, shape)
+    filled = closed & ~hit & _eroded(closed, 1)  # filled pixels inside the closed mask
+    if filled.any():
+        new = _pixels_in_window(filled, r0, c0, shape)
+        u = np.concatenate([u, new.u.astype(np.float64)])
+        v = np.concatenate([v, new.v.astype(np.float64)])
+    return TrackedPoints(u, v, _pixels_in_window(closed, r0, c0, shape))
 
 
 def metric_erosion_px(
@@ -407,19 +445,31 @@ def metric_erosion_px(
         erosion_m: band width on the object [m].
         max_removed_fraction: in [0, 1).
     """
+    return metric_erosion(pixels, depth_m, focal_px, erosion_m, max_removed_fraction)[0]
+
+
+def metric_erosion(
+    pixels: PixelSet,
+    depth_m: NDArray[np.floating],
+    focal_px: float,
+    erosion_m: float,
+    max_removed_fraction: float,
+) -> tuple[int, PixelSet]:
+    """:func:`metric_erosion_px`'s radius and the mask eroded by it (``pixels`` itself for 0)."""
     if len(pixels) == 0 or erosion_m <= 0:
-        return 0
+        return 0, pixels
     z = np.take(depth_m.reshape(-1), pixels.index)
     z = z[np.isfinite(z) & (z > 0)]
     if z.size == 0:
-        return 0
-    radius = int(round(erosion_m * focal_px / float(np.median(z))))
-    while radius > 0:
-        kept = len(erode_pixels(pixels, radius))
-        if kept >= (1.0 - max_removed_fraction) * len(pixels):
-            break
+        return 0, pixels
+    radius = int(round(erosion_m * focal_px / median(z)))
+    window = mask_window(pixels) if radius > 0 else None
+    while radius > 0 and window is not None:
+        bits = _eroded(window.bits, radius)
+        if cv2.countNonZero(bits) >= (1.0 - max_removed_fraction) * len(pixels):
+            return radius, _pixels_in_window(bits, window.r0, window.c0, pixels.shape)
         radius -= 1
-    return radius
+    return 0, pixels
 
 
 @dataclass(frozen=True, slots=True)
@@ -496,9 +546,7 @@ class MaskSynchroniser:
                     points = TrackedPoints.from_pixels(pixels)
                     steps = [(best.capture_k, pixels)]
                     for flow_j in chain:
-                        points = track_points(
-                            points, flow_j, cleanup=cfg.cleanup, new_points=cfg.new_points
-                        )
+                        points = track_points(points, flow_j, cleanup=cfg.cleanup)
                         steps.append((flow_j.to_k, points.pixels))
                     self._points, pixels = points, points.pixels
                     history = tuple(steps)
@@ -508,9 +556,7 @@ class MaskSynchroniser:
         elif cfg.flow_aided and self._pixels is not None and k in self._flows:
             counts["warp_flows"] = 1
             if cfg.subpixel and self._points is not None:
-                self._points = track_points(
-                    self._points, self._flows[k], cleanup=cfg.cleanup, new_points=cfg.new_points
-                )
+                self._points = track_points(self._points, self._flows[k], cleanup=cfg.cleanup)
                 self._pixels = self._points.pixels
             else:
                 self._pixels = warp_pixels(

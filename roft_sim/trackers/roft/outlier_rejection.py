@@ -18,6 +18,7 @@ shifts the render by half a low-resolution pixel minus half a pixel.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -85,6 +86,8 @@ class DepthOutlierTest:
         self._sy = h / intrinsics.height_px
         self._gamma = config.gamma
         self._depth_maximum_m = config.depth_maximum_m
+        self.render_s = 0.0
+        """Seconds spent in the depth renderer so far (the tracker's stage timing)."""
 
     @property
     def render_intrinsics(self) -> CameraIntrinsics:
@@ -100,7 +103,9 @@ class DepthOutlierTest:
         and the fraction ``(N,)`` of the valid samples each pose's render covers (0 when
         there is no valid sample)."""
         T = np.asarray(T_cam_obj, dtype=np.float64)
+        start = time.perf_counter()
         rendered = self._renderer.render_depth(T, self._small)
+        self.render_s += time.perf_counter() - start
         if rendered.shape != (T.shape[0],) + self._small.shape:
             raise ValueError(
                 f"depth renderer returned shape {rendered.shape}, expected "

@@ -402,17 +402,9 @@ class PoseUKF:
         P_yy = weighted.T @ y_off
         P_xy = dx.T @ weighted
         K = np.linalg.solve(P_yy, P_xy.T).T  # P_yy symmetric
-        if has_pose and not self._config.pose_updates_velocity:
-            # Schmidt update: the pose rows of the measurement do not move v and w
-            K[0:6, j:] = 0.0
         delta = K @ nu
         q_new = _qmul(_qexp(delta[None, 9:12])[0], belief.q)
-        if has_pose and not self._config.pose_updates_velocity:
-            # the gain is not the optimal one: the general (Joseph-like) form keeps P right
-            KPxy = K @ P_xy.T
-            P = belief.P - KPxy - KPxy.T + K @ P_yy @ K.T
-        else:
-            P = belief.P - K @ P_yy @ K.T
+        P = belief.P - K @ P_yy @ K.T
         return PoseBelief(
             x=belief.x + delta[:9], q=q_new / np.linalg.norm(q_new), P=0.5 * (P + P.T)
         )

@@ -25,8 +25,8 @@ the horizon), so the result does not depend on the order of arrival.
 
 from __future__ import annotations
 
-import copy
 import dataclasses
+import time
 from collections import Counter
 from dataclasses import dataclass
 from typing import Literal
@@ -39,8 +39,6 @@ from roft_sim.geometry.se3 import transform_from_pq
 from roft_sim.geometry.so3 import quat_from_matrix
 from roft_sim.records import (
     Estimate,
-    FlowField,
-    MaskDetection,
     Observation,
     PoseDetection,
 )
@@ -68,8 +66,6 @@ from roft_sim.trackers.roft.mask_sync import (
     MaskStep,
     MaskSynchroniser,
     PixelSet,
-    erode_pixels,
-    metric_erosion_px,
 )
 from roft_sim.trackers.roft.outlier_rejection import (
     DepthOutlierTest,
@@ -83,12 +79,8 @@ from roft_sim.trackers.roft.pose_ukf import (
     estimate_from_belief,
     gate_rejects,
 )
-from roft_sim.trackers.roft.velocity_kf import flow_measurement
-from roft_sim.trackers.roft.velocity_selector import (
-    SelectingVelocityKF,
-    VelocityFilter,
-    make_velocity_filter,
-)
+from roft_sim.trackers.roft.velocity_selector import SelectingVelocityKF
+from roft_sim.trackers.roft.velocity_stage import TwistMeasurement, VelocityStage, VelocityStep
 
 F64 = NDArray[np.float64]
 
@@ -138,28 +130,26 @@ class _Pose:
     q_wxyz: F64
 
 
-@dataclass(frozen=True, slots=True)
-class _VelocityInput:
-    """What the velocity KF read at one delivered camera frame (kept for the re-measurement
-    of ``velocity.remeasure_on_fresh_mask``)."""
+class _StageClock:
+    """Seconds between successive laps, by stage name (``time.perf_counter``)."""
 
-    t_s: float
-    """Time stamp of the frame [s]."""
-    depth_m: NDArray[np.floating]
-    """(H, W) its z-depth [m]."""
-    flow: FlowField | None
-    """F_k (frame k-1 -> k) as delivered, or None."""
+    def __init__(self) -> None:
+        self.times: dict[str, float] = {}
+        self._last = time.perf_counter()
+
+    def lap(self, stage: str) -> None:
+        """Adds the time since the last lap to ``stage``."""
+        now = time.perf_counter()
+        self.times[stage] = self.times.get(stage, 0.0) + now - self._last
+        self._last = now
+
+    def move(self, source: str, stage: str, seconds: float) -> None:
+        """Books ``seconds`` of ``source``'s time as ``stage`` (a part timed inside it)."""
+        self.times[source] -= seconds
+        self.times[stage] = self.times.get(stage, 0.0) + seconds
 
 
-@dataclass(slots=True)
-class _PreviousFrame:
-    """The last delivered camera frame, for the next flow measurement."""
-
-    k: int
-    t_s: float
-    pixels: PixelSet | None
-    """Its synchronised mask, eroded by ``velocity.mask_erosion_px``."""
-    depth_m: NDArray[np.floating]
+_NO_TWIST = TwistMeasurement(None, None)
 
 
 class RoftTracker:
@@ -187,9 +177,15 @@ class RoftTracker:
                 context.depth_renderer, context.intrinsics, config.outlier_rejection
             )
         self._mask_sync = MaskSynchroniser(config.mask, context.intrinsics.shape, self._horizon)
-        width = context.intrinsics.width_px
-        self._stride = config.velocity.stride(width)
-        self._velocity_kf = make_velocity_filter(config.velocity, width)
+        self._velocity = VelocityStage(
+            config.velocity, context.intrinsics, context.fps, self._horizon
+        )
+        self.stage_times_s: dict[str, float] = {}
+        """Seconds each stage of the last step took: ``mask_sync``, ``velocity``,
+        ``remeasure`` (re-measuring a delayed mask's frames, part of the velocity stage),
+        ``pose`` (this frame's UKF predict and correct), ``replay`` (the UKF re-run over the
+        frames before it from a delayed pose's capture frame) and ``render`` (the outlier
+        test's depth renders, inside ``pose`` and ``replay``)."""
         self.reset(None)
 
     @property
@@ -207,7 +203,7 @@ class RoftTracker:
                 one frame. None means "initialise from the earliest pose received".
         """
         self._mask_sync.reset()
-        self._velocity_kf.reset()
+        self._velocity.reset()
         self._frames: dict[int, _Frame] = {}
         self._beliefs: dict[int, PoseBelief] = {}
         # frame -> the poses gated in a row after it
@@ -219,7 +215,7 @@ class RoftTracker:
         self._known_ids: dict[int, int] = {}  # detection_id -> capture frame
         self._decisions: dict[int, bool] = {}  # detection_id -> accepted
         self._gated: set[int] = set()  # detection_ids rejected by the gate (vs depth test)
-        # detection_ids that re-initialised an unconfirmed track (gate.reinitialise_unconfirmed)
+        # detection_ids that re-initialised an unconfirmed track, or by the depth override
         self._reinitialising: set[int] = set()
         self._init_pose: _Pose | None = None
         self._initial = initial
@@ -227,137 +223,10 @@ class RoftTracker:
         self._first_k: int | None = None
         self._last_k: int | None = None
         self._last_t: float | None = None
-        self._previous: _PreviousFrame | None = None
         self._mask: PixelSet | None = None
         self._totals: Counter[str] = Counter()
-        # velocity.remeasure_on_fresh_mask: per delivered frame, the KF's inputs and its state
-        # after the frame; the first frame whose stored twist a re-measurement changed
-        self._velocity_inputs: dict[int, _VelocityInput] = {}
-        self._velocity_states: dict[int, VelocityFilter] = {}
+        # the first frame whose stored twist a fresh mask's re-measurement changed
         self._twists_changed_from: int | None = None
-
-    # ------------------------------------------------------------------ per-frame inputs
-    def _erosion_radius_px(self, pixels: PixelSet, depth_m: NDArray[np.floating]) -> int:
-        """``velocity.mask_erosion_px``, or the metric rule when that is None."""
-        cfg = self._config.velocity
-        if cfg.mask_erosion_px is not None:
-            return cfg.mask_erosion_px
-        return metric_erosion_px(
-            pixels,
-            depth_m,
-            self._intrinsics.fx_px,
-            cfg.mask_erosion_m,
-            cfg.mask_erosion_max_removed,
-        )
-
-    def _flow_update(
-        self,
-        kf: VelocityFilter,
-        prev: _PreviousFrame | None,
-        k: int,
-        t_s: float,
-        flow: FlowField | None,
-        depth_m: NDArray[np.floating],
-    ) -> int:
-        """Predicts and corrects ``kf`` with F_k read on ``prev`` (the mask and depth of the
-        frame before k) and, with ``velocity.depth_rate``, the depth ``depth_m`` (H, W) [m] of
-        frame k; returns the pixels used (0 when the filter did not update)."""
-        if (
-            prev is None
-            or prev.pixels is None
-            or flow is None
-            or flow.from_k != prev.k
-            or flow.to_k != k
-            or not t_s - prev.t_s > 0
-        ):
-            return 0
-        dt = t_s - prev.t_s
-        meas = flow_measurement(
-            prev.pixels,
-            prev.depth_m,
-            flow,
-            self._intrinsics,
-            dt,
-            self._config.velocity,
-            stride=self._stride,
-            linearization_twist=kf.x if kf.updates > 0 else None,
-            next_depth_m=depth_m,
-        )
-        if kf.step(meas, frames=dt * self._context.fps, t_s=t_s, dt_s=dt):
-            return len(meas)
-        return 0
-
-    def _flow_mask(
-        self, k: int, t_s: float, pixels: PixelSet | None, depth_m: NDArray[np.floating]
-    ) -> _PreviousFrame:
-        """Frame k as the next flow measurement reads it: its mask eroded by
-        ``velocity.mask_erosion_px`` (or the metric rule) and its depth."""
-        if pixels is not None:
-            radius = self._erosion_radius_px(pixels, depth_m)
-            if radius:
-                pixels = erode_pixels(pixels, radius)
-        return _PreviousFrame(k, t_s, pixels, depth_m)
-
-    def _twist_for_ukf(self, kf: VelocityFilter, updated: bool) -> tuple[F64 | None, F64 | None]:
-        """The UKF's velocity measurement (None when the KF did not update and stale twists are
-        skipped) and the covariance added to its noise (or None)."""
-        vcfg = self._config.velocity
-        if not updated and vcfg.skip_stale_velocity:
-            return None, None
-        cov = kf.P.copy() if vcfg.twist_covariance_to_ukf else None
-        return kf.x.copy(), cov
-
-    def _velocity_step(
-        self, obs: Observation, pixels: PixelSet | None
-    ) -> tuple[F64 | None, F64 | None, int]:
-        """Runs the velocity KF; returns the UKF's velocity measurement (None when there is
-        none), the covariance to add to its noise (or None) and the pixels used."""
-        if obs.depth_m is None:  # dropped camera frame: no measurement at all
-            return None, None, 0
-        used = self._flow_update(
-            self._velocity_kf, self._previous, obs.k, obs.t_s, obs.flow, obs.depth_m
-        )
-        self._previous = self._flow_mask(obs.k, obs.t_s, pixels, obs.depth_m)
-        if self._config.velocity.remeasure_on_fresh_mask:
-            self._velocity_inputs[obs.k] = _VelocityInput(obs.t_s, obs.depth_m, obs.flow)
-            self._velocity_states[obs.k] = copy.deepcopy(self._velocity_kf)
-        twist, cov = self._twist_for_ukf(self._velocity_kf, used > 0)
-        return twist, cov, used
-
-    def _remeasure(self, k: int, history: tuple[tuple[int, PixelSet], ...]) -> int:
-        """``velocity.remeasure_on_fresh_mask``: a mask captured at c arrived at k; replays the
-        velocity KF over the frames c+1 .. k-1 with each flow read on that mask warped to the
-        frame before, replaces their stored twists, and leaves the warped mask of k-1 for frame
-        k's own update. Returns the number of frames re-measured."""
-        c = history[0][0]
-        if c >= k or c not in self._velocity_states or c not in self._velocity_inputs:
-            return 0
-        warped = dict(history)
-
-        def mask_at(j: int) -> PixelSet:
-            return warped[max(i for i in warped if i <= j)]
-
-        kf = copy.deepcopy(self._velocity_states[c])
-        inp = self._velocity_inputs[c]
-        prev = self._flow_mask(c, inp.t_s, mask_at(c), inp.depth_m)
-        count = 0
-        for j in range(c + 1, k):
-            inp_j = self._velocity_inputs.get(j)
-            if inp_j is None:  # a dropped camera frame: the filter did not run
-                continue
-            used = self._flow_update(kf, prev, j, inp_j.t_s, inp_j.flow, inp_j.depth_m)
-            prev = self._flow_mask(j, inp_j.t_s, mask_at(j), inp_j.depth_m)
-            self._velocity_states[j] = copy.deepcopy(kf)
-            twist, cov = self._twist_for_ukf(kf, used > 0)
-            if j in self._frames:
-                self._frames[j] = dataclasses.replace(self._frames[j], twist=twist, twist_cov=cov)
-            if self._twists_changed_from is None:
-                self._twists_changed_from = j
-            count += 1
-        if k - 1 in self._velocity_inputs:
-            self._velocity_kf = kf
-            self._previous = prev
-        return count
 
     def _file_poses(
         self, k: int, poses: tuple[PoseDetection, ...]
@@ -493,7 +362,7 @@ class RoftTracker:
             P = predicted.P
             variance = (float(np.trace(P[6:9, 6:9])) / 3, float(np.trace(P[9:12, 9:12])) / 3)
             passes, after = adaptive_gate_test(gate, spread, squared, variance, pose.capture_k)
-            confirmed = spread.passed > 0 or not gate.open_until_confirmed
+            confirmed = spread.passed > 0
             span_s = streak.span_s(pose.capture_k, self._context.fps)
             may_reject = (
                 streak.count < gate.max_consecutive_rejections or span_s < gate.min_rejection_span_s
@@ -502,9 +371,7 @@ class RoftTracker:
             spread = after
             self._reinitialising.discard(pose.detection_id)
             override = self._depth_override(pose, without_pose, frame) if gated else None
-            if override is not None or (
-                not passes and not confirmed and gate.reinitialise_unconfirmed
-            ):
+            if override is not None or (not passes and not confirmed):
                 self._decisions[pose.detection_id] = True
                 self._gated.discard(pose.detection_id)
                 self._reinitialising.add(pose.detection_id)
@@ -571,7 +438,7 @@ class RoftTracker:
     ) -> PoseBelief:
         """``belief`` with its pose replaced by ``pose`` and the pose block of its covariance
         by the configured initial one (no cross-covariance with the velocities, which are
-        kept with their covariance): ``gate.reinitialise_unconfirmed`` and the depth
+        kept with their covariance): an unconfirmed track's failing pose and the depth
         override. ``keep_orientation``: the position only; the orientation and its variance
         stay ``belief``'s."""
         fresh = self._ukf.initial_belief(pose.p_m, pose.q_wxyz)
@@ -642,21 +509,16 @@ class RoftTracker:
 
     def _start_scales(self) -> BlockScales:
         """The scales before the first frame: the pose-noise factors start from the
-        detector-noise prior (``covariance_scale.detector_prior``), or from 1."""
-        if not self._config.covariance_scale.detector_prior:
-            return BlockScales.initial()
+        detector-noise prior (the adaptive gate's prior spread)."""
         t, r = detector_noise_prior(initial_spread(self._config.gate), self._config.pose)
         return BlockScales.initial(t, r)
 
     def _restarted(self, scales: BlockScales, belief: PoseBelief) -> BlockScales:
         """``scales`` after a pose (re)initialised the filter (``belief``, after it): the
-        excess becomes that detection's estimated noise minus the filter's pose covariance
-        (``covariance_scale.detector_prior``; zero without), and the time since a pose 0."""
-        cfg = self._config.covariance_scale
-        excess = np.zeros((6, 6))
-        if cfg.detector_prior:
-            factors = scales.pose_noise_factors(cfg)
-            excess = restart_pose_excess(belief.P[6:12, 6:12], self._pose_noise(), factors)
+        excess becomes that detection's estimated noise minus the filter's pose covariance,
+        and the time since a pose 0."""
+        factors = scales.pose_noise_factors(self._config.covariance_scale)
+        excess = restart_pose_excess(belief.P[6:12, 6:12], self._pose_noise(), factors)
         return dataclasses.replace(scales, pose_excess=excess, since_pose_s=0.0)
 
     def _with_twist_change(
@@ -684,15 +546,12 @@ class RoftTracker:
         )
 
     def _previous_twist_frame(self, j: int) -> _Frame | None:
-        """The frame the twist of frame j is compared with: j-1, or with
-        ``covariance_scale.twist_change_over_gaps`` the last frame before j that had a twist,
-        at most ``sync.horizon_frames`` back, so that dropped camera frames and frames without
-        flow do not starve the twist-change statistic; None when there is none. The frames are
-        kept that far behind the oldest replayable one (:meth:`_prune`), so a replay finds
-        the same frame as the undelayed run did."""
+        """The frame the twist of frame j is compared with: the last frame before j that had a
+        twist, at most ``sync.horizon_frames`` back, so that dropped camera frames and frames
+        without flow do not starve the twist-change statistic; None when there is none. The
+        frames are kept that far behind the oldest replayable one (:meth:`_prune`), so a replay
+        finds the same frame as the undelayed run did."""
         previous = self._frames.get(j - 1)
-        if not self._config.covariance_scale.twist_change_over_gaps:
-            return previous
         for i in range(j - 2, j - 1 - self._horizon, -1):
             if previous is not None and previous.twist is not None:
                 break
@@ -705,29 +564,20 @@ class RoftTracker:
         cfg = self._config.covariance_scale
         if not cfg.enable:
             return scales
-        nu, S = pose_innovation(before, pose.p_m, pose.q_wxyz, self._config.pose)
+        nu, _ = pose_innovation(before, pose.p_m, pose.q_wxyz, self._config.pose)
         memory = cfg.memory_measurements
-        if cfg.persistent_twist:
-            # the pose noise the innovation is explained by: the configured one (the rest is
-            # the twist's), or the one estimated before this pose by covariance matching
-            noise = self._pose_noise()
-            if cfg.persistent_twist_noise == "estimated":
-                noise = noise * np.repeat(scales.pose_noise_factors(cfg), 3)[:, None]
-            v_var, w_var = persistent_twist_samples(
-                nu, before.P[6:12, 6:12], scales.pose_excess, noise, scales.since_pose_s
-            )
-            scales = dataclasses.replace(
-                scales,
-                v_persistent=scales.v_persistent.updated(v_var, 1, memory),
-                w_persistent=scales.w_persistent.updated(w_var, 1, memory),
-            )
-        scales = dataclasses.replace(scales, since_pose_s=0.0)
-        if cfg.pose_block == "scale":
-            return dataclasses.replace(
-                scales,
-                t=scales.t.updated(normalised_innovation_squared(nu[:3], S[:3, :3]), 3, memory),
-                r=scales.r.updated(normalised_innovation_squared(nu[3:], S[3:, 3:]), 3, memory),
-            )
+        # the pose noise the innovation is explained by is the configured one: the rest is the
+        # twist's (the estimated noise would explain every innovation while the detector prior
+        # is not yet forgotten, leaving the twist no sample)
+        v_var, w_var = persistent_twist_samples(
+            nu, before.P[6:12, 6:12], scales.pose_excess, self._pose_noise(), scales.since_pose_s
+        )
+        scales = dataclasses.replace(
+            scales,
+            v_persistent=scales.v_persistent.updated(v_var, 1, memory),
+            w_persistent=scales.w_persistent.updated(w_var, 1, memory),
+            since_pose_s=0.0,
+        )
         # covariance matching of the pose noise: E[nu nu^T] = P + excess + R_true
         P = before.P[6:12, 6:12]
         R = self._pose_noise()
@@ -766,51 +616,54 @@ class RoftTracker:
 
     # ------------------------------------------------------------------ the protocol
     def step(self, observation: Observation) -> Estimate:
-        """Consumes camera frame ``observation.k`` and returns the estimate for it."""
+        """Consumes camera frame ``observation.k`` and returns the estimate for it.
+
+        The stages run once each, in the paper's order: mask synchronisation, the velocity KF
+        (with the re-measurement of a delayed mask's frames), the pose UKF with the replay of
+        delayed poses (outlier rejection inside); their times are in :attr:`stage_times_s`.
+        """
         obs = observation
         k = obs.k
+        clock = _StageClock()
         dt = self._frame_interval_s(obs)
-        cfg = self._config
-        pixels: PixelSet | None = None
-        mask_counts: dict[str, int] = {}
-        mask_step: MaskStep | None = None
-        if cfg.use_flow or self._uses_outlier_test:
-            masks: tuple[MaskDetection, ...] = obs.masks
-            mask_step = self._mask_sync.step(k, obs.flow if cfg.use_flow else None, masks)
-            pixels, mask_counts = mask_step.pixels, mask_step.counts
-        self._mask = pixels
-        twist, twist_cov, flow_pixels = (None, None, 0)
-        remeasured = 0
-        if cfg.use_flow:
-            if cfg.velocity.remeasure_on_fresh_mask and mask_step is not None and mask_step.history:
-                remeasured = self._remeasure(k, mask_step.history)
-            twist, twist_cov, flow_pixels = self._velocity_step(obs, pixels)
+        mask_step = self._synchronise_mask(obs)
+        pixels = mask_step.pixels if mask_step is not None else None
+        clock.lap("mask_sync")
+        velocity = self._measure_velocity(obs, mask_step)
+        clock.lap("velocity")
+        if velocity is not None:
+            clock.move("velocity", "remeasure", velocity.remeasure_s)
         samples = None
         if self._uses_outlier_test and pixels is not None and obs.depth_m is not None:
-            samples = depth_samples(pixels, obs.depth_m, cfg.outlier_rejection)
-        self._frames[k] = _Frame(dt_s=float(dt), twist=twist, twist_cov=twist_cov, samples=samples)
-
+            samples = depth_samples(pixels, obs.depth_m, self._config.outlier_rejection)
+        twist = velocity.measurement if velocity is not None else _NO_TWIST
+        self._frames[k] = _Frame(
+            dt_s=float(dt), twist=twist.twist, twist_cov=twist.covariance, samples=samples
+        )
         new, dropped, dropped_ids = self._file_poses(k, obs.poses)
-        estimate_belief, replay = self._replay(k, new)
+        estimate_belief, replay = self._replay(k, new, clock)
         self._prune(k)
         accepted, rejected, gated = self._count_decisions(new, dropped)
         diagnostics: dict[str, float | int | str] = {
-            "flow_pixels": flow_pixels,
+            "flow_pixels": velocity.pixels_used if velocity is not None else 0,
             "mask_pixels": len(pixels) if pixels is not None else 0,
             "replayed_frames": replay,
-            "remeasured_frames": remeasured,
+            "remeasured_frames": len(velocity.revised) if velocity is not None else 0,
             "poses_gated": gated,
-            **{f"mask_{name}": n for name, n in mask_counts.items()},
+            **{f"mask_{name}": n for name, n in (mask_step.counts if mask_step else {}).items()},
             **{f"poses_dropped_{reason}": n for reason, n in dropped.items()},
             **{f"total_{name}": n for name, n in self._totals.items()},
         }
-        if isinstance(self._velocity_kf, SelectingVelocityKF):
-            weights = self._velocity_kf.weights_accel
-            diagnostics["velocity_weight_accel_linear"] = float(weights[0])
-            diagnostics["velocity_weight_accel_angular"] = float(weights[1])
+        kf = self._velocity.filter
+        if isinstance(kf, SelectingVelocityKF):
+            diagnostics["velocity_weight_accel_linear"] = float(kf.weights_accel[0])
+            diagnostics["velocity_weight_accel_angular"] = float(kf.weights_accel[1])
         spatial_twist = None
-        if cfg.use_flow and (self._velocity_kf.updates > 0 or cfg.velocity.report_unmeasured_twist):
-            spatial_twist = self._velocity_kf.x_frame.copy()
+        if self._config.use_flow and (
+            kf.updates > 0 or self._config.velocity.report_unmeasured_twist
+        ):
+            spatial_twist = kf.x_frame.copy()
+        self.stage_times_s = clock.times
         if estimate_belief is None:
             return Estimate.invalid(
                 k,
@@ -829,6 +682,37 @@ class RoftTracker:
                 diagnostics=diagnostics,
             )
         )
+
+    def _synchronise_mask(self, obs: Observation) -> MaskStep | None:
+        """The mask stage: advances the synchroniser to frame ``obs.k`` (None when neither the
+        flow nor the outlier test uses masks)."""
+        if not (self._config.use_flow or self._uses_outlier_test):
+            self._mask = None
+            return None
+        flow = obs.flow if self._config.use_flow else None
+        step = self._mask_sync.step(obs.k, flow, obs.masks)
+        self._mask = step.pixels
+        return step
+
+    def _measure_velocity(
+        self, obs: Observation, mask_step: MaskStep | None
+    ) -> VelocityStep | None:
+        """The velocity stage (None without flow): frame k's twist measurement, and the
+        revisions of earlier frames' twists a fresh mask's re-measurement made (stored here
+        for the pose replay)."""
+        if not self._config.use_flow:
+            return None
+        pixels = mask_step.pixels if mask_step is not None else None
+        history = mask_step.history if mask_step is not None else ()
+        velocity = self._velocity.step(obs, pixels, history)
+        if velocity.revised:
+            self._twists_changed_from = min(velocity.revised)
+        for j, revised in velocity.revised.items():
+            if j in self._frames:
+                self._frames[j] = dataclasses.replace(
+                    self._frames[j], twist=revised.twist, twist_cov=revised.covariance
+                )
+        return velocity
 
     def _frame_interval_s(self, obs: Observation) -> float:
         """Checks that frame ``obs.k`` follows the last one and returns the time since it [s]
@@ -852,23 +736,33 @@ class RoftTracker:
         self._last_k, self._last_t = k, obs.t_s
         return float(dt)
 
-    def _replay(self, k: int, new: list[_Pose]) -> tuple[PoseBelief | None, int]:
+    def _replay(
+        self, k: int, new: list[_Pose], clock: _StageClock
+    ) -> tuple[PoseBelief | None, int]:
         """Re-runs the pose filter from the earliest frame a new pose changes (or advances it
         by frame k alone), storing every belief; returns frame k's belief (None before the
-        first pose) and the number of frames run."""
+        first pose) and the number of frames run. Times the frames before k as ``replay``,
+        frame k as ``pose`` and the outlier test's renders as ``render``."""
         start = self._replay_start(k, new)
         changed = self._twists_changed_from  # stored twists a re-measurement replaced
         self._twists_changed_from = None
         if start is None:
+            clock.lap("pose")
             return None, 0
         j0, belief = start
         if changed is not None and changed < j0:
             first = max(changed, min(self._beliefs) + 1)  # beliefs are stored from init - 1
             if first < j0:
                 j0, belief = first, self._beliefs[first - 1]
+        render_before = self._outlier_test.render_s if self._outlier_test is not None else 0.0
         for j in range(j0, k + 1):
+            if j == k:
+                clock.lap("replay")
             belief = self._advance(j, belief)
             self._beliefs[j] = belief
+        clock.lap("pose")
+        if self._outlier_test is not None:
+            clock.times["render"] = self._outlier_test.render_s - render_before
         return belief, k + 1 - j0
 
     def _count_decisions(
@@ -893,9 +787,7 @@ class RoftTracker:
         # a replayed frame may look up to a horizon further back (_previous_twist_frame)
         for j in [j for j in self._frames if j < oldest - self._horizon]:
             del self._frames[j]
-        for j in [j for j in self._velocity_inputs if j < oldest]:
-            del self._velocity_inputs[j]
-            self._velocity_states.pop(j, None)
+        self._velocity.prune(oldest)
         for j in [j for j in self._beliefs if j < oldest - 1]:
             del self._beliefs[j]
         for j in [j for j in self._gate_streaks if j < oldest - 1]:
@@ -927,11 +819,11 @@ class RoftTracker:
     def velocity_belief(self) -> tuple[F64, F64]:
         """The velocity KF's interval-mean twist (6,) (v_o [m/s], w [rad/s], camera frame) and
         its covariance (6, 6): the pose UKF's velocity measurement."""
-        return self._velocity_kf.x.copy(), self._velocity_kf.P.copy()
+        return self._velocity.filter.x.copy(), self._velocity.filter.P.copy()
 
     @property
     def reported_twist(self) -> F64:
         """The velocity filter's twist (6,) (v_o [m/s], w [rad/s], camera frame) at the last
         frame: ``Estimate.spatial_twist`` once a flow has been used (the interval mean for
         ``velocity.motion_model = "constant"``, the models' mix for ``auto``)."""
-        return self._velocity_kf.x_frame.copy()
+        return self._velocity.filter.x_frame.copy()

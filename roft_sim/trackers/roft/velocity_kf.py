@@ -22,9 +22,12 @@ above holds at fast turns too.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
+import functools
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Literal
 
 import cv2
 import numpy as np
@@ -32,11 +35,11 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.stats import chi2
 
 from roft_sim.geometry.camera import CameraIntrinsics, backproject_pixels, project_points
-from roft_sim.geometry.so3 import matrix_from_rotvec, so3_left_jacobian
+from roft_sim.geometry.so3 import so3_exp_and_left_jacobian
 from roft_sim.records import FlowField
 from roft_sim.trackers.roft.config import VelocityKFConfig
-from roft_sim.trackers.roft.mask_sync import PixelSet, lookup_flow
-from roft_sim.trackers.roft.twist_rate import TwistRateFilter
+from roft_sim.trackers.roft.mask_sync import PixelSet, lookup_flow, mask_window
+from roft_sim.trackers.roft.medians import MAD_TO_SIGMA, column_medians, median
 
 F64 = NDArray[np.float64]
 
@@ -50,6 +53,7 @@ __all__ = [
     "laplacian_likelihood",
     "VelocityKF",
 ]
+
 
 _LIKELIHOOD_FLOOR = 1e-6
 _MIN_SPREAD = 1e-4
@@ -103,9 +107,28 @@ class FlowMeasurement:
     """The sampled points' depth changes (``depth_rate``), or None (the flow alone)."""
     grid_px: int = 1
     """Image pixels per cell of the flow field the vectors were read from (1: dense)."""
+    _distinct: list[int] = field(init=False, repr=False, compare=False)
+    """Memo of :meth:`distinct_vectors` (both motion models of ``auto`` ask)."""
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "_distinct", [])
 
     def __len__(self) -> int:
         return int(self.y_px.shape[0])
+
+    def distinct_vectors(self) -> int:
+        """The number of distinct flow vectors ``y_px`` (rows equal in both components)."""
+        if not self._distinct:
+            y = np.ascontiguousarray(self.y_px, dtype=np.float64)
+            self._distinct.append(int(np.unique(y.view(np.complex128)).size))
+        return self._distinct[0]
+
+
+def flow_rows_at(J: F64, twist: F64) -> F64:
+    """``J @ twist`` (N, 2) [px] of flow Jacobians ``J`` (N, 2, 6) at a twist (6,), as one
+    matrix-vector product of the stacked rows (five times faster than the stacked ``@``)."""
+    out: F64 = (J.reshape(-1, 6) @ twist).reshape(-1, 2)
+    return out
 
 
 def flow_jacobian(
@@ -146,12 +169,34 @@ def finite_motion_flow(
     with the constant spatial twist ``(v_o [m/s], w [rad/s])`` for ``dt_s`` [s]: each point
     ``P`` goes to ``exp(dt (v_o, w)) P = R P + J_l(w dt) v_o dt`` (``R = exp([w dt]x)``); the
     finite counterpart of :func:`flow_jacobian` (NaN where a point ends behind the camera)."""
-    uv = np.stack([np.asarray(u_px, dtype=np.float64), np.asarray(v_px, dtype=np.float64)], -1)
-    x = np.asarray(twist, dtype=np.float64)
-    rotvec = x[3:] * dt_s
-    P = backproject_pixels(intrinsics, uv, z_m)
-    moved = P @ matrix_from_rotvec(rotvec).T + so3_left_jacobian(rotvec) @ (x[:3] * dt_s)
-    return project_points(intrinsics, moved) - uv
+    return _FiniteMotion(intrinsics, u_px, v_px, z_m).flow(np.asarray(twist, np.float64), dt_s)
+
+
+class _FiniteMotion:
+    """:func:`finite_motion_flow` at fixed pixels, their back-projection computed once (the
+    filter evaluates it at several twists per update)."""
+
+    def __init__(
+        self, intrinsics: CameraIntrinsics, u_px: ArrayLike, v_px: ArrayLike, z_m: ArrayLike
+    ):
+        self._intrinsics = intrinsics
+        self._uv = np.stack(
+            [np.asarray(u_px, dtype=np.float64), np.asarray(v_px, dtype=np.float64)], -1
+        )
+        self._points = backproject_pixels(intrinsics, self._uv, z_m)
+
+    def flow(self, twist: F64, dt_s: float) -> F64:
+        """(N, 2) the pixels' flow [px] under ``twist`` (6,) for ``dt_s`` [s]."""
+        R, J_l = so3_exp_and_left_jacobian(twist[3:] * dt_s)
+        moved = self._points @ R.T + J_l @ (twist[:3] * dt_s)
+        return project_points(self._intrinsics, moved) - self._uv
+
+    def corrected(self, y: F64, J: F64, dt_s: float, twist: F64) -> F64:
+        """The flow ``y`` (N, 2) [px] less ``h(x) - J x`` at ``x = twist`` (6,)
+        (``VelocityKFConfig.finite_motion_correction``); ``y`` unchanged if ``h`` is not
+        finite (a point carried behind the camera)."""
+        correction = self.flow(twist, dt_s) - flow_rows_at(J, twist)
+        return y - correction if np.isfinite(correction).all() else y
 
 
 _FINITE_MOTION_MIN_PIXELS = 6
@@ -161,23 +206,6 @@ _FINITE_MOTION_FITS = 2
 """Re-fits of the pixels' least-squares twist when no twist is given (the first update)."""
 _RELINEARIZATIONS = 2
 """Iterated-EKF steps of :meth:`VelocityKF.relinearized`."""
-
-
-def _finite_motion_corrected(
-    intrinsics: CameraIntrinsics,
-    u: NDArray[np.int64],
-    v: NDArray[np.int64],
-    z: F64,
-    y: F64,
-    J: F64,
-    dt_s: float,
-    twist: F64,
-) -> F64:
-    """The flow ``y`` (N, 2) [px] less ``h(x) - J x`` at ``x = twist`` (6,)
-    (VelocityKFConfig.finite_motion_correction); ``y`` unchanged if ``h`` is not finite (a
-    point carried behind the camera)."""
-    correction = finite_motion_flow(intrinsics, u, v, z, twist, dt_s) - J @ twist
-    return y - correction if np.isfinite(correction).all() else y
 
 
 _EXACT_FLOW_NOISE_RATIO = 0.01
@@ -236,40 +264,33 @@ def depth_rate_rows(
     r0 = np.floor(v2).astype(np.int64)
     a = u2 - c0
     b = v2 - r0
-    d = next_depth_m
-    corners = np.stack([d[r0, c0], d[r0, c0 + 1], d[r0 + 1, c0], d[r0 + 1, c0 + 1]], axis=1).astype(
-        np.float64
-    )
-    good = (corners > 0.0).all(axis=1) & (corners < config.depth_maximum_m).all(axis=1)
-    good &= np.ptp(corners, axis=1) <= _DEPTH_RATE_EDGE_M
-    z2 = (
-        (1 - a) * (1 - b) * corners[:, 0]
-        + a * (1 - b) * corners[:, 1]
-        + (1 - a) * b * corners[:, 2]
-        + a * b * corners[:, 3]
-    )
+    # the four neighbours (r0, c0), (r0, c0 + 1), (r0 + 1, c0), (r0 + 1, c0 + 1): (4, M)
+    base = r0 * w + c0
+    corner_offsets = np.array([0, 1, w, w + 1])[:, None]
+    c = np.take(next_depth_m.reshape(-1), base + corner_offsets).astype(np.float64)
+    good = (c > 0.0).all(axis=0) & (c < config.depth_maximum_m).all(axis=0)
+    good &= c.max(axis=0) - c.min(axis=0) <= _DEPTH_RATE_EDGE_M
+    z2 = (1 - a) * (1 - b) * c[0] + a * (1 - b) * c[1] + (1 - a) * b * c[2] + a * b * c[3]
     if config.depth_band_m is not None:
-        good &= np.abs(z2 - np.median(z_m)) < config.depth_band_m
+        good &= np.abs(z2 - median(z_m)) < config.depth_band_m
     if np.count_nonzero(good) < _DEPTH_RATE_MIN_ROWS:
         return None
-    slope = 0.5 * np.hypot(
-        (corners[:, 1] - corners[:, 0]) + (corners[:, 3] - corners[:, 2]),
-        (corners[:, 2] - corners[:, 0]) + (corners[:, 3] - corners[:, 1]),
-    )
+    slope = 0.5 * np.hypot((c[1] - c[0]) + (c[3] - c[2]), (c[2] - c[0]) + (c[3] - c[1]))
     idx, z2, u2, v2, slope = idx[good], z2[good], u2[good], v2[good], slope[good]
     z1 = z_m[idx]
-    P1 = backproject_pixels(intrinsics, np.stack([u_px[idx], v_px[idx]], -1), z1)
-    P2 = backproject_pixels(intrinsics, np.stack([u2, v2], -1), z2)
-    mean = 0.5 * (P1 + P2)
+    # the points' mean position over the interval (camera frame) [m]
+    cx, cy, fx, fy = intrinsics.cx_px, intrinsics.cy_px, intrinsics.fx_px, intrinsics.fy_px
+    x_mean = 0.5 * ((u_px[idx] - cx) / fx * z1 + (u2 - cx) / fx * z2)
+    y_mean = 0.5 * ((v_px[idx] - cy) / fy * z1 + (v2 - cy) / fy * z2)
     J = np.zeros((idx.size, 6))
-    J[:, 2] = 1.0
-    J[:, 3] = mean[:, 1]
-    J[:, 4] = -mean[:, 0]
+    J[:, 2] = dt_s
+    J[:, 3] = y_mean * dt_s
+    J[:, 4] = -x_mean * dt_s
     return DepthRateRows(
         u_px=u_px[idx],
         v_px=v_px[idx],
         dz_m=z2 - z1,
-        J=J * dt_s,
+        J=J,
         slope_m_per_px=slope,
         cell_weight=None if cell_weight is None else cell_weight[idx],
     )
@@ -297,12 +318,9 @@ def _depth_rate_weights(
     for _ in range(2):
         if np.count_nonzero(keep) < _DEPTH_RATE_MIN_ROWS:
             return innovation, np.zeros_like(innovation)
-        w = np.sqrt(1.0 / variance[keep])
-        fit = np.linalg.lstsq(A[keep] * w[:, None], innovation[keep] * w, rcond=None)[0]
+        fit = _weighted_fit(A[keep], innovation[keep], 1.0 / variance[keep])
         residual = innovation - A @ fit
-        sigma = max(
-            config.depth_rate_sigma_min_m, _MAD_TO_SIGMA * float(np.median(np.abs(residual[keep])))
-        )
+        sigma = max(config.depth_rate_sigma_min_m, MAD_TO_SIGMA * median(np.abs(residual[keep])))
         variance = sigma**2 + spread
         keep = np.abs(residual) <= config.depth_rate_inlier_sigmas * np.sqrt(variance)
     weight = keep / variance
@@ -311,34 +329,55 @@ def _depth_rate_weights(
     return innovation, weight
 
 
+def _weighted_fit(A: F64, b: F64, weight: F64) -> F64:
+    """The weighted least-squares solution (n,) of ``A x = b`` (A (M, n), b (M,)) with weights
+    ``weight`` (M,) (inverse variances): the normal equations, or, when they are singular
+    (points on a line), ``lstsq``'s minimum-norm solution."""
+    AtW = A.T * weight
+    try:
+        x = np.asarray(np.linalg.solve(AtW @ A, AtW @ b), dtype=np.float64)
+        if np.isfinite(x).all():
+            return x
+    except np.linalg.LinAlgError:
+        pass
+    w = np.sqrt(weight)
+    return np.asarray(np.linalg.lstsq(A * w[:, None], b * w, rcond=None)[0], dtype=np.float64)
+
+
 _OCCLUDER_MIN_PIXELS = 12
 """Fewer sampled pixels than this: no occluder test (too few to fit a motion and test parts)."""
 _OCCLUDER_PART_MIN_PIXELS = 5
 """A depth part with fewer sampled pixels is never tested (too few for its mean flow)."""
 
 
-def _label_depth_edges(
-    labels: NDArray[np.int32], z: F64, box: NDArray[np.bool_], jump_m: float
+_NEIGHBOURS_8 = ((-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1))
+"""The 8-neighbourhood ``(dv, du)``, in the order ties are broken (the first wins)."""
+
+
+def _edge_pixel_labels(
+    labels: NDArray[np.int32],
+    z: F64,
+    rows: NDArray[np.int64],
+    cols: NDArray[np.int64],
+    jump_m: float,
 ) -> NDArray[np.int32]:
-    """``labels`` (h, w) with each mask pixel on a depth edge (label 0) given the label of the
-    8-neighbour nearest in depth among the labelled ones within ``jump_m``: the pixels on either
-    side of a cut join their own side."""
-    h, w = labels.shape
-    best = np.full((h, w), np.inf)
-    out = labels.copy()
-    edge = box & (labels == 0)
+    """The labels (M,) of the mask pixels ``(rows, cols)`` of the box that lie on a depth edge
+    (label 0): each takes the label of its 8-neighbour nearest in depth among the labelled ones
+    within ``jump_m`` (the first such neighbour of :data:`_NEIGHBOURS_8` on a tie; 0 if none),
+    so the pixels on either side of a cut join their own side."""
     pad_l = np.pad(labels, 1)
     pad_z = np.pad(z, 1, constant_values=np.inf)
-    for dv in (-1, 0, 1):
-        for du in (-1, 0, 1):
-            if dv == 0 and du == 0:
-                continue
-            nl = pad_l[1 + dv : 1 + dv + h, 1 + du : 1 + du + w]
-            gap = np.abs(pad_z[1 + dv : 1 + dv + h, 1 + du : 1 + du + w] - z)
-            better = edge & (nl > 0) & (gap <= jump_m) & (gap < best)
-            out[better] = nl[better]
-            best[better] = gap[better]
-    return out
+    r, c = rows + 1, cols + 1
+    gaps = np.empty((rows.size, len(_NEIGHBOURS_8)))
+    near = np.empty((rows.size, len(_NEIGHBOURS_8)), dtype=np.int32)
+    here = pad_z[r, c]
+    for i, (dv, du) in enumerate(_NEIGHBOURS_8):
+        near[:, i] = pad_l[r + dv, c + du]
+        gaps[:, i] = np.abs(pad_z[r + dv, c + du] - here)
+    gaps[(near <= 0) | ~(gaps <= jump_m)] = np.inf
+    best = np.argmin(gaps, axis=1)
+    found = np.isfinite(gaps[np.arange(rows.size), best])
+    return np.where(found, near[np.arange(rows.size), best], 0).astype(np.int32)
 
 
 def occluder_free(
@@ -380,9 +419,14 @@ def occluder_free(
     """
     keep = np.ones(len(u), dtype=bool)
     jump = float(config.occluder_depth_jump_m or 0.0)
-    v0, u0 = int(pixels.v.min()), int(pixels.u.min())
-    box = np.zeros((int(pixels.v.max()) + 1 - v0, int(pixels.u.max()) + 1 - u0), dtype=bool)
-    box[pixels.v - v0, pixels.u - u0] = True
+    window = mask_window(pixels)
+    h, w = pixels.shape
+    rows, cols = window.bits.shape
+    # the window cropped to the image (no mask pixel lies outside it)
+    r_lo, c_lo = max(0, -window.r0), max(0, -window.c0)
+    r_hi, c_hi = min(rows, h - window.r0), min(cols, w - window.c0)
+    box = window.bits[r_lo:r_hi, c_lo:c_hi].astype(bool)
+    v0, u0 = window.r0 + r_lo, window.c0 + c_lo
     zb = np.asarray(depth_m[v0 : v0 + box.shape[0], u0 : u0 + box.shape[1]], dtype=np.float64)
     box &= zb > 0.0
     cut = np.zeros_like(box)
@@ -395,8 +439,12 @@ def occluder_free(
     n_parts, labels = cv2.connectedComponents((box & ~cut).astype(np.uint8), connectivity=4)
     if n_parts <= 2:  # the background label and at most one part
         return keep
-    labels = _label_depth_edges(np.asarray(labels, dtype=np.int32), zb, box, jump)
-    part = labels[v - v0, u - u0]  # 0: an edge pixel no part claims (kept, not tested)
+    labels = np.asarray(labels, dtype=np.int32)
+    rows, cols = v - v0, u - u0
+    part = labels[rows, cols]  # 0: an edge pixel no part claims (kept, not tested)
+    edge = np.flatnonzero(part == 0)
+    if edge.size:
+        part[edge] = _edge_pixel_labels(labels, zb, rows[edge], cols[edge], jump)
     counts = np.bincount(part, minlength=n_parts)
     counts[0] = 0
     main = int(np.argmax(counts))
@@ -408,14 +456,14 @@ def occluder_free(
         H_inv = np.linalg.inv(H)
     except np.linalg.LinAlgError:
         return keep
-    residual = y[on_main] - J[on_main] @ twist
+    residual = y[on_main] - flow_rows_at(J[on_main], twist)
     # per-component flow variance: the median of |r|^2 (chi-square, 2 dof: median 1.386 s^2) / 2
-    var_px2 = max(float(np.median(np.sum(residual * residual, axis=1))) / (2.0 * 1.3863), 1e-12)
+    var_px2 = max(median(np.sum(residual * residual, axis=1)) / (2.0 * 1.3863), 1e-12)
     limit = float(chi2.ppf(config.occluder_probability, 2))
-    z_main = float(np.median(z[on_main]))
+    z_main = median(z[on_main])
     for label in np.unique(part[(part != 0) & ~on_main]):
         idx = np.flatnonzero(part == label)
-        if len(idx) < _OCCLUDER_PART_MIN_PIXELS or not np.median(z[idx]) < z_main - jump:
+        if len(idx) < _OCCLUDER_PART_MIN_PIXELS or not median(z[idx]) < z_main - jump:
             continue
         mean_residual = (y[idx] - J[idx] @ twist).mean(axis=0)
         J_mean = J[idx].mean(axis=0)
@@ -439,7 +487,7 @@ def _measurement_jacobian(
     further (VelocityKFConfig)."""
     shift = np.zeros(2)  # where the Jacobian is evaluated, from each pixel of k-1 [px]
     if config.midpoint_jacobian and u.size:
-        shift = 0.5 * np.median(y, axis=0)
+        shift = 0.5 * column_medians(y)
     return flow_jacobian(intrinsics, u + shift[0], v + shift[1], z, dt_s)
 
 
@@ -477,17 +525,19 @@ def flow_measurement(
             depth change where the flow carries it is measured too (:func:`depth_rate_rows`);
             None: the flow alone.
     """
-    index = pixels.index[:: stride if stride is not None else config.subsampling_stride]
+    step = stride if stride is not None else config.subsampling_stride
+    index = pixels.index[::step]
+    u, v = pixels.u[::step], pixels.v[::step]
     z = np.take(depth_m.reshape(-1), index).astype(np.float64)
     w = pixels.shape[1]
-    v = index // w
-    u = index - v * w
-    f, ok = lookup_flow(flow, u, v)
+    dense = flow.flow_px.shape[:2] == pixels.shape  # read at the pixels' own indices
+    f, ok = lookup_flow(flow, u, v, index if dense else None)
     ok &= (z > 0.0) & (z < config.depth_maximum_m)
     if config.depth_band_m is not None and ok.any():
-        ok &= np.abs(z - np.median(z[ok])) < config.depth_band_m
-    u, v, z, f = u[ok], v[ok], z[ok], f[ok]
-    y = np.stack([f.real, f.imag], axis=1).astype(np.float64)
+        ok &= np.abs(z - median(z[ok])) < config.depth_band_m
+    if not ok.all():
+        u, v, z, f = u[ok], v[ok], z[ok], f[ok]
+    y = f.view(np.float32).reshape(-1, 2).astype(np.float64)  # (du, dv) per pixel
     flow_px = y  # as measured: where each point went (the corrections below change y)
     J: F64 | None = None
     if config.occluder_depth_jump_m is not None and u.size >= _OCCLUDER_MIN_PIXELS:
@@ -500,21 +550,20 @@ def flow_measurement(
         J = _measurement_jacobian(intrinsics, u, v, z, y, dt_s, config)
     relinearize: Callable[[F64], F64] | None = None
     if config.finite_motion_correction and linearization_twist is not None:
-        measured, jacobian = y, J
+        motion, measured, jacobian = _FiniteMotion(intrinsics, u, v, z), y, J
 
         def corrected_at(twist: F64) -> F64:
-            return _finite_motion_corrected(intrinsics, u, v, z, measured, jacobian, dt_s, twist)
+            return motion.corrected(measured, jacobian, dt_s, twist)
 
         y = corrected_at(np.asarray(linearization_twist, dtype=np.float64))
         relinearize = corrected_at
     elif config.finite_motion_correction and u.size >= _FINITE_MOTION_MIN_PIXELS:
         # no filter estimate yet: at the pixels' own least-squares twist, re-fitted on the
         # corrected flow
-        measured = y
+        motion, measured = _FiniteMotion(intrinsics, u, v, z), y
         for _ in range(_FINITE_MOTION_FITS):
             fit = np.linalg.lstsq(J.reshape(-1, 6), y.reshape(-1), rcond=None)[0]
-            twist = np.asarray(fit, dtype=np.float64)
-            y = _finite_motion_corrected(intrinsics, u, v, z, measured, J, dt_s, twist)
+            y = motion.corrected(measured, J, dt_s, np.asarray(fit, dtype=np.float64))
     cell_weight = None
     if config.independent_pixels_per_cell and flow.grid_px > 1 and u.size:
         g = flow.grid_px
@@ -548,43 +597,50 @@ def laplacian_likelihood(innovation_px: F64, pairs: str = "correct") -> F64:
     norms (element r with element r + N of the stacked vector (du_0, dv_0, du_1, ...)).
     """
     e = np.asarray(innovation_px, dtype=np.float64)
-    norms = np.hypot(e[:, 0], e[:, 1])
+    norms = np.sqrt(np.einsum("ij,ij->i", e, e))
     if pairs == "reference":
         flat = e.reshape(-1)
         n = e.shape[0]
         stats_norms = np.hypot(flat[:n], flat[n:])
     else:
         stats_norms = norms
-    mu = float(np.median(stats_norms))
-    b = float(np.mean(np.abs(stats_norms - mu)))
+    mu = median(stats_norms)
+    distance = np.abs(norms - mu)
+    spread = distance if stats_norms is norms else np.abs(stats_norms - mu)
+    b = float(spread.sum()) / spread.shape[0]
     if not b > _MIN_SPREAD:
         return np.ones(e.shape[0])
-    lik = np.maximum(np.exp(-np.abs(norms - mu) / b) / (2.0 * b), _LIKELIHOOD_FLOOR)
-    return lik / float(lik.max())
-
-
-_MAD_TO_SIGMA = 1.4826
-"""Median absolute deviation to standard deviation for Gaussian data."""
+    lik = np.maximum(np.exp(distance * (-1.0 / b)) / (2.0 * b), _LIKELIHOOD_FLOOR)
+    out: F64 = lik / float(lik.max())
+    return out
 
 
 class VelocityKF:
     """Linear KF of the spatial twist (v_o, w); batched information-form update.
 
-    One motion model: ``constant_acceleration``, or else the constant one (``motion_model =
-    "auto"`` runs two of these: :func:`roft_sim.trackers.roft.velocity_selector.
-    make_velocity_filter` builds the filter a configuration asks for).
+    One motion model: ``constant`` (the reference's random-walk twist) or
+    ``constant_acceleration`` (``velocity.motion_model = "auto"`` runs one of each:
+    :func:`roft_sim.trackers.roft.velocity_selector.make_velocity_filter` builds the filter a
+    configuration asks for).
 
-    With the reference settings (``adapt_*`` off, ``midpoint_timing`` off) this is the
+    With the reference settings (``adapt_flow_noise`` off) the constant model is the
     reference's filter; the adaptive parts are described on :class:`VelocityKFConfig`.
     """
 
-    def __init__(self, config: VelocityKFConfig, width_px: int | None = None):
+    def __init__(
+        self,
+        config: VelocityKFConfig,
+        width_px: int | None = None,
+        model: Literal["constant", "constant_acceleration"] = "constant",
+    ):
         """Args:
         config: the settings.
         width_px: image width [px] for the resolution scaling of the flow noise (None: the
             noise as given).
+        model: the motion model.
         """
         self._config = config
+        self._model = model
         self._Q_base = np.concatenate([config.sigma_linear, config.sigma_angular]).astype(
             np.float64
         )
@@ -601,17 +657,13 @@ class VelocityKF:
         self.P: F64 = np.diag(np.concatenate([cfg.cov_v0, cfg.cov_w0])).astype(np.float64)
         """(6, 6) covariance."""
         self.x_frame: F64 = self.x.copy()
-        """(6,) the twist reported for the last frame: ``x`` carried half an interval forward
-        with ``midpoint_timing``, else ``x``."""
+        """(6,) the twist reported for the last frame: ``x`` for the constant model, the twist
+        at the frame for the constant-acceleration model."""
         self.q_diag: F64 = self._Q_base.copy()
-        """(6,) the process noise variance per frame in use (adapted, or the configured)."""
+        """(6,) the process noise variance per frame."""
         self.flow_sigma_px: F64 = np.sqrt(self._R)
         """(2,) the flow noise standard deviation used by the last update [px]."""
-        self._previous_mid_t: float | None = None
-        self._rate = TwistRateFilter(
-            np.repeat([cfg.rate_psd_linear, cfg.rate_psd_angular], 3), cfg.rate_noise_memory
-        )
-        # motion_model = "constant_acceleration": (12,) state (twist at t_s [m/s, rad/s], its
+        # the constant-acceleration model: (12,) state (twist at t_s [m/s, rad/s], its
         # rate [m/s^2, rad/s^2]) at time _t_s [s], covariance (12, 12); the prior covariance of
         # the twist is the constant model's at its first update (cov_*0 plus one frame of Q)
         self.X: F64 = np.concatenate([self.x, np.zeros(6)])
@@ -630,35 +682,51 @@ class VelocityKF:
         self._twist_noise_sum = np.zeros(6)
         self._twist_noise_weight = 0.0
         self.twist_noise: F64 = np.zeros(6)
-        """(6,) ``adapt_twist_noise``: the variance of the flow's interval-mean twist that the
-        per-pixel noise does not explain [(m/s)^2, (rad/s)^2]."""
+        """(6,) the constant-acceleration model: the variance of the flow's interval-mean twist
+        that the per-pixel noise does not explain [(m/s)^2, (rad/s)^2]."""
         self.updates = 0
         """Number of corrections so far (0: the twist is the prior, no flow has been used)."""
+        self._priors: dict[tuple[float | None, ...], tuple[F64, _Prior]] = {}
+        self._transitions: dict[float, tuple[F64, F64]] = {}
         self.fit: tuple[F64, F64] | None = None
         """The pixels of the last update on their own: their weighted least-squares interval-mean
         twist ``m_ls`` (6,) [m/s, rad/s] and its information ``P_ls^-1`` (6, 6) (the robust
         weights and flow noise of that update); None before the first update or when the pixels
         did not observe the whole twist."""
 
+    def copy(self) -> VelocityKF:
+        """An independent copy of this filter (its arrays are never changed in place, so they
+        are shared until either filter replaces them)."""
+        out = copy.copy(self)
+        out._priors = {}  # a cache of this filter's state
+        return out
+
     def _robust_weights(
-        self, measurement: FlowMeasurement, x_prior: F64, P_prior: F64
-    ) -> tuple[F64, F64, F64, tuple[F64, F64]]:
+        self,
+        measurement: FlowMeasurement,
+        x_prior: F64,
+        prior: _Prior,
+        *,
+        with_noise: bool = True,
+    ) -> tuple[F64, F64, F64, F64]:
         """The per-pixel weights and flow noise of one update from the prior twist.
 
         Args:
             measurement: the flow pixels (``J`` (N, 2, 6), ``y_px`` (N, 2) [px]).
             x_prior: (6,) prior spatial twist ``(v_o [m/s], w [rad/s])``, camera frame.
-            P_prior: (6, 6) its covariance.
+            prior: its covariance (and inverse).
+            with_noise: estimate the flow noise (``adapt_flow_noise``); False when only the
+                update is wanted (the relinearisation).
 
         Returns:
-            ``(innovation (N, 2) [px], lik (N,), R (2,) [px^2], (dx, P_post))``: the Laplacian
+            ``(innovation (N, 2) [px], lik (N,), R (2,) [px^2], dx (6,))``: the Laplacian
             likelihood weights (times the grid-cell weights), the flow noise (``cov_flow``, or
             the robust spread of the residuals when ``adapt_flow_noise`` and larger), and the
-            update with the configured noise (the residuals' reference).
+            update of the twist with the configured noise (the residuals' reference).
         """
         cfg = self._config
         J, y = measurement.J, measurement.y_px
-        innovation = y - J @ x_prior  # (N, 2)
+        innovation = y - flow_rows_at(J, x_prior)  # (N, 2)
         if cfg.weight_flow:
             lik = laplacian_likelihood(innovation, cfg.reweighting_pairs)
         else:
@@ -667,15 +735,15 @@ class VelocityKF:
             lik = lik * measurement.cell_weight
         R = self._R
         J2 = J.reshape(-1, 6)
-        first = self._solve(P_prior, J2, innovation, (lik[:, None] / R[None, :]).reshape(-1))
-        if cfg.adapt_flow_noise:
-            residual = y - J @ (x_prior + first[0])
-            spread = _MAD_TO_SIGMA * np.median(np.abs(residual), axis=0)
+        dx = _Update(prior, J2, innovation, (lik[:, None] / R[None, :]).reshape(-1)).dx
+        if with_noise and cfg.adapt_flow_noise:
+            residual = y - flow_rows_at(J, x_prior + dx)
+            spread = MAD_TO_SIGMA * column_medians(np.abs(residual))
             R = np.maximum(R, spread**2)
-        return innovation, lik, R, first
+        return innovation, lik, R, dx
 
     def _exact_flow_ratio(
-        self, measurement: FlowMeasurement, lik: F64, x_prior: F64, R: F64
+        self, measurement: FlowMeasurement, lik: F64, innovation: F64, x_prior: F64, R: F64
     ) -> float:
         """``exact_flow_spread_px``: the factor on the flow noise, from the robust spread of the
         pixels' residuals about their own weighted least-squares twist (no prior: the prior's
@@ -689,34 +757,34 @@ class VelocityKF:
         Args:
             measurement: the pixels (``J`` (N, 2, 6), ``y_px`` (N, 2) [px], ``grid_px``).
             lik: (N,) their robust weights.
+            innovation: (N, 2) ``y - J x_prior`` [px].
             x_prior: (6,) the twist the flow is linearised about [m/s, rad/s].
             R: (2,) the flow noise [px^2] (the weights' scale only).
         """
         J, y = measurement.J, measurement.y_px
         if measurement.grid_px != 1 or len(y) < _EXACT_FLOW_MIN_VECTORS:
             return 1.0
-        distinct = len(np.unique(y, axis=0))
-        if distinct < max(_EXACT_FLOW_MIN_VECTORS, 0.9 * len(y)):
+        if measurement.distinct_vectors() < max(_EXACT_FLOW_MIN_VECTORS, 0.9 * len(y)):
             return 1.0
         J2 = J.reshape(-1, 6)
         fit = _least_squares(
-            J2, (lik[:, None] / R[None, :]).reshape(-1), (y - J @ x_prior).reshape(-1), x_prior
+            J2, (lik[:, None] / R[None, :]).reshape(-1), innovation.reshape(-1), x_prior
         )
         if fit is None:
             return 1.0
-        spread = _MAD_TO_SIGMA * float(np.median(np.abs(y - J @ fit[0]), axis=0).max())
+        spread = MAD_TO_SIGMA * float(column_medians(np.abs(y - flow_rows_at(J, fit[0]))).max())
         ratio = (spread / float(self._config.exact_flow_spread_px or np.inf)) ** 2
         return min(max(ratio, _EXACT_FLOW_NOISE_RATIO), 1.0)
 
     def _weighted_rows(
-        self, measurement: FlowMeasurement, x_prior: F64, P_prior: F64
+        self, measurement: FlowMeasurement, x_prior: F64, prior: _Prior
     ) -> tuple[F64, F64, F64, F64]:
         """Every measurement row of one update, weighted, from the prior twist.
 
         Args:
             measurement: the flow pixels and, with ``depth_rate``, their depth changes.
             x_prior: (6,) prior spatial twist ``(v_o [m/s], w [rad/s])``, camera frame.
-            P_prior: (6, 6) its covariance.
+            prior: its covariance (and inverse).
 
         Returns:
             ``(J (M, 6), W (M,), innovation (M,), R (2,) [px^2])``: the flow's two rows per
@@ -725,11 +793,11 @@ class VelocityKF:
             followed by the depth-change rows ([m per (m/s), m per (rad/s)], [1/m^2], [m];
             :func:`_depth_rate_weights`), and the flow noise.
         """
-        innovation, lik, R, _ = self._robust_weights(measurement, x_prior, P_prior)
+        innovation, lik, R, _ = self._robust_weights(measurement, x_prior, prior)
         cfg = self._config
         if cfg.adapt_flow_noise and cfg.exact_flow_spread_px is not None:
             # here, not in _robust_weights: relinearized() uses only its update, not R
-            R = R * self._exact_flow_ratio(measurement, lik, x_prior, R)
+            R = R * self._exact_flow_ratio(measurement, lik, innovation, x_prior, R)
         J = measurement.J.reshape(-1, 6)
         W = (lik[:, None] / R[None, :]).reshape(-1)
         nu = innovation.reshape(-1)
@@ -741,13 +809,6 @@ class VelocityKF:
             W = np.concatenate([W, W_z])
             nu = np.concatenate([nu, nu_z])
         return J, W, nu, R
-
-    def _solve(self, P_pred: F64, J2: F64, innovation: F64, weight: F64) -> tuple[F64, F64]:
-        JtW = J2.T * weight  # (6, 2N)
-        info = np.linalg.inv(P_pred) + JtW @ J2
-        P_post = np.linalg.inv(info)
-        P_post = 0.5 * (P_post + P_post.T)
-        return P_post @ (JtW @ innovation.reshape(-1)), P_post
 
     def step(
         self,
@@ -762,8 +823,8 @@ class VelocityKF:
         Args:
             measurement: the flow measurement of the interval, or None.
             frames: how many nominal frame intervals the flow spans (Q scales with it).
-            t_s: time of the current frame [s] (for ``midpoint_timing``).
-            dt_s: the interval the flow spans [s] (for ``midpoint_timing``).
+            t_s: time of the current frame [s] (for the constant-acceleration model).
+            dt_s: the interval the flow spans [s] (for the constant-acceleration model).
 
         Returns:
             True if the belief was updated; False if there was no measurement or fewer than
@@ -775,50 +836,26 @@ class VelocityKF:
             return False
         if measurement.relinearize is not None:
             measurement = self.relinearized(measurement, frames, t_s, dt_s)
-        if cfg.motion_model == "constant_acceleration":
+        if self._model == "constant_acceleration":
             if t_s is None or dt_s is None:
                 raise ValueError(
-                    "motion_model = 'constant_acceleration' needs the frame time t_s and the "
+                    "the constant-acceleration model needs the frame time t_s and the "
                     "interval dt_s the flow spans"
                 )
             self._step_constant_acceleration(measurement, t_s, dt_s)
             self.updates += 1
             return True
         self.updates += 1
-        x_pred, P_pred = self._interval_prior(frames, t_s, dt_s)
-        J2, W, innovation, R = self._weighted_rows(measurement, x_pred, P_pred)
-        dx, P_post = self._solve(P_pred, J2, innovation, W)
+        x_pred, prior = self._interval_prior(frames, t_s, dt_s)
+        J2, W, innovation, R = self._weighted_rows(measurement, x_pred, prior)
+        update = _Update(prior, J2, innovation, W)
         self.flow_sigma_px = np.sqrt(R)
-        self.fit = _least_squares(J2, W, innovation, x_pred)
-        if cfg.adapt_process_noise:
-            # innovation-based covariance matching on the measurement-only estimate x_ls of this
-            # interval: E[(x_ls - x)^2] = Q + P + P_ls (F = I), so the sample of Q does not
-            # shrink with the filter's own gain (the Sage-Husa form on K nu does, and locks in)
-            if self.fit is None:  # unobservable interval: keep Q
-                sample = self.q_diag
-            else:
-                m_ls, info_ls = self.fit
-                P_ls = np.linalg.inv(info_ls)
-                d_ls = m_ls - x_pred
-                sample = np.maximum(d_ls**2 - np.diag(self.P) - np.diag(P_ls), 0.0) / max(
-                    frames, 1.0
-                )
-            a = 1.0 / cfg.adaptation_frames
-            floor = self._Q_base * cfg.process_noise_floor
-            self.q_diag = np.maximum((1.0 - a) * self.q_diag + a * sample, floor)
-        x_new = x_pred + dx
+        self.fit = update.least_squares(x_pred)
+        x_new = x_pred + update.dx
         self.x_frame = x_new
-        if cfg.midpoint_timing and t_s is not None and dt_s is not None:
-            mid_t = t_s - 0.5 * dt_s
-            if cfg.midpoint_rate == "filtered":
-                self._rate.update(x_new, np.diag(P_post), mid_t)
-                self.x_frame = self._rate.twist_at(t_s)
-            elif self._previous_mid_t is not None and mid_t > self._previous_mid_t:
-                rate = (x_new - self.x) / (mid_t - self._previous_mid_t)
-                self.x_frame = x_new + rate * (0.5 * dt_s)
-            self._previous_mid_t = mid_t
         self.x = x_new
-        self.P = P_post
+        self.P = update.P_post
+        self._priors.clear()
         return True
 
     def relinearized(
@@ -832,33 +869,42 @@ class VelocityKF:
         estimate of the interval (the robust update from the predicted interval mean, twice:
         iterated-EKF steps; nothing of the filter changes) and ``relinearize`` cleared.
         :meth:`step` calls it when the measurement can be relinearised."""
-        x_pred, P_pred = self._interval_prior(frames, t_s, dt_s)
+        x_pred, prior = self._interval_prior(frames, t_s, dt_s)
         relinearize = measurement.relinearize
         assert relinearize is not None  # checked by the caller
         for _ in range(_RELINEARIZATIONS):
-            dx = self._robust_weights(measurement, x_pred, P_pred)[3][0]
+            dx = self._robust_weights(measurement, x_pred, prior, with_noise=False)[3]
             measurement = dataclasses.replace(measurement, y_px=relinearize(x_pred + dx))
         return dataclasses.replace(measurement, relinearize=None)
 
     def _interval_prior(
         self, frames: float, t_s: float | None, dt_s: float | None
-    ) -> tuple[F64, F64]:
-        """The predicted interval-mean twist (6,) and its covariance (6, 6) that the flow of the
-        interval ``(t_s - dt_s, t_s]`` is weighed against: ``x`` and ``P`` plus ``frames``
-        frames of Q for the constant model; ``M X-`` and ``M P- M^T`` for
-        ``constant_acceleration`` (constant-model form without the times)."""
-        if self._config.motion_model == "constant_acceleration" and t_s is not None and dt_s:
+    ) -> tuple[F64, _Prior]:
+        """The predicted interval-mean twist (6,) and its covariance (6, 6, with its inverse)
+        that the flow of the interval ``(t_s - dt_s, t_s]`` is weighed against: ``x`` and ``P``
+        plus ``frames`` frames of Q for the constant model; ``M X-`` and ``M P- M^T`` for
+        ``constant_acceleration`` (constant-model form without the times). Kept until the
+        next update: the relinearisation and the update weigh against the same prior."""
+        accel = self._model == "constant_acceleration" and t_s is not None and bool(dt_s)
+        key = (t_s, dt_s) if accel else (frames,)
+        cached = self._priors.get(key)
+        if cached is not None:
+            return cached
+        if accel and t_s is not None and dt_s is not None:
             X_pred, P_X = self._predict_constant_acceleration(t_s, dt_s)
             M = _interval_mean_map(dt_s)
-            return M @ X_pred, M @ P_X @ M.T
-        return self.x, self.P + np.diag(self.q_diag * max(frames, 1e-9))
+            out = (M @ X_pred, _Prior(M @ P_X @ M.T))
+        else:
+            out = (self.x, _Prior(self.P + np.diag(self.q_diag * max(frames, 1e-9))))
+        self._priors[key] = out
+        return out
 
     def predicted_interval_mean(self, t_s: float, dt_s: float) -> F64:
         """The mean twist (6,) [m/s, rad/s] this filter predicts for the interval
         ``(t_s - dt_s, t_s]`` before seeing its flow: ``x`` for the constant model, ``M F X``
         (the predicted twist at ``t_s`` less half an interval of its rate) for
         ``constant_acceleration``."""
-        if self._config.motion_model != "constant_acceleration":
+        if self._model != "constant_acceleration":
             return self.x.copy()
         X_pred, _ = self._predict_constant_acceleration(t_s, dt_s)
         out: F64 = X_pred[:6] - 0.5 * dt_s * X_pred[6:]
@@ -867,18 +913,32 @@ class VelocityKF:
     def _predict_constant_acceleration(self, t_s: float, dt_s: float) -> tuple[F64, F64]:
         """``X`` (12,) and ``P_X`` (12, 12) carried from the last update to ``t_s`` [s] (over
         the flow's interval ``dt_s`` [s] before the first update)."""
-        cfg = self._config
         h = max(t_s - self._t_s if self._t_s is not None else dt_s, 0.0)
-        eye = np.eye(6)
-        F = np.block([[eye, h * eye], [np.zeros((6, 6)), eye]])
-        q = np.repeat([cfg.rate_psd_linear, cfg.rate_psd_angular], 3)
-        Q = np.block(
-            [
-                [np.diag(q * h**3 / 3.0), np.diag(q * h**2 / 2.0)],
-                [np.diag(q * h**2 / 2.0), np.diag(q * h)],
-            ]
-        )
+        F, Q = self._transition(h)
         return F @ self.X, F @ self.P_X @ F.T + Q
+
+    def _transition(self, h: float) -> tuple[F64, F64]:
+        """The constant-acceleration model's ``F = [[I, h I], [0, I]]`` (12, 12) and white-jerk
+        ``Q = q [[h^3/3, h^2/2], [h^2/2, h]]`` per component (12, 12) over ``h`` [s]."""
+        cached = self._transitions.get(h)
+        if cached is not None:
+            return cached
+        cfg = self._config
+        eye = np.eye(6)
+        F = np.zeros((12, 12))
+        F[:6, :6] = eye
+        F[:6, 6:] = h * eye
+        F[6:, 6:] = eye
+        q = np.repeat([cfg.rate_psd_linear, cfg.rate_psd_angular], 3)
+        Q = np.zeros((12, 12))
+        Q[:6, :6] = np.diag(q * h**3 / 3.0)
+        Q[:6, 6:] = np.diag(q * h**2 / 2.0)
+        Q[6:, :6] = np.diag(q * h**2 / 2.0)
+        Q[6:, 6:] = np.diag(q * h)
+        if len(self._transitions) > 8:  # the frame interval rarely varies
+            self._transitions.clear()
+        self._transitions[h] = (F, Q)
+        return F, Q
 
     def _initialise_constant_acceleration(
         self, m_ls: F64, P_ls: F64, P_pred: F64, t_s: float, dt_s: float
@@ -906,14 +966,14 @@ class VelocityKF:
     def _step_constant_acceleration(
         self, measurement: FlowMeasurement, t_s: float, dt_s: float
     ) -> None:
-        """One predict/correct of the constant-acceleration state (``motion_model``).
+        """One predict/correct of the constant-acceleration state.
 
         Predicts ``X`` from its time to ``t_s`` (``F = [[I, h I], [0, I]]``, white jerk
         ``Q = q [[h^3/3, h^2/2], [h^2/2, h]]`` per component). The flow over ``(t_s - dt_s, t_s]``
         measures the interval mean ``M X = twist - rate dt / 2``; the pixels are first reduced to
         their least-squares interval mean ``m_ls`` with covariance ``P_ls`` (the information
         form of the constant model, robust weights included), then ``m_ls`` corrects ``X`` with
-        noise ``P_ls + diag(r)``: ``r`` (``adapt_twist_noise``) is the running mean of
+        noise ``P_ls + diag(r)``: ``r`` is the running mean of
         ``nu^2 - diag(M P- M^T + P_ls)`` over ``rate_noise_memory`` updates (covariance
         matching on the innovations ``nu = m_ls - M X-``), the error of the flow's twist that
         the per-pixel noise does not explain (pixels that are wrong together: a stale mask, flow
@@ -924,11 +984,12 @@ class VelocityKF:
         cfg = self._config
         X_pred, P_pred = self._predict_constant_acceleration(t_s, dt_s)
         M = _interval_mean_map(dt_s)
-        mean_pred = M @ X_pred
-        P_mean = M @ P_pred @ M.T
+        mean_pred, prior = self._interval_prior(1.0, t_s, dt_s)  # M X-, M P- M^T
+        P_mean = prior.P
         # the constant model's weights and flow noise, with the interval mean as the prior
-        J2, W, innovation, R = self._weighted_rows(measurement, mean_pred, P_mean)
+        J2, W, innovation, R = self._weighted_rows(measurement, mean_pred, prior)
         self.flow_sigma_px = np.sqrt(R)
+        self._priors.clear()
         JtW = J2.T * W
         info_ls = JtW @ J2
         try:
@@ -938,7 +999,8 @@ class VelocityKF:
         if P_ls is None or not np.isfinite(P_ls).all():
             # pixel-level update without the twist noise
             self.fit = None
-            dX, P_post = self._solve(P_pred, J2 @ M, innovation, W)
+            update = _Update(_Prior(P_pred), J2 @ M, innovation, W)
+            dX, P_post = update.dx, update.P_post
         else:
             P_ls = 0.5 * (P_ls + P_ls.T)
             nu = P_ls @ (JtW @ innovation.reshape(-1))  # m_ls - M X-
@@ -946,12 +1008,11 @@ class VelocityKF:
             if self.updates == 0:
                 self._initialise_constant_acceleration(mean_pred + nu, P_ls, P_pred, t_s, dt_s)
                 return
-            if cfg.adapt_twist_noise:
-                keep = 1.0 - 1.0 / cfg.rate_noise_memory
-                sample = np.maximum(nu**2 - np.diag(P_mean) - np.diag(P_ls), 0.0)
-                self._twist_noise_sum = keep * self._twist_noise_sum + sample
-                self._twist_noise_weight = keep * self._twist_noise_weight + 1.0
-                self.twist_noise = self._twist_noise_sum / self._twist_noise_weight
+            keep = 1.0 - 1.0 / cfg.rate_noise_memory
+            sample = np.maximum(nu**2 - np.diag(P_mean) - np.diag(P_ls), 0.0)
+            self._twist_noise_sum = keep * self._twist_noise_sum + sample
+            self._twist_noise_weight = keep * self._twist_noise_weight + 1.0
+            self.twist_noise = self._twist_noise_sum / self._twist_noise_weight
             S = P_mean + P_ls + np.diag(self.twist_noise)
             K = np.linalg.solve(S, M @ P_pred).T  # (12, 6) = P- M^T S^-1
             dX = K @ nu
@@ -965,9 +1026,11 @@ class VelocityKF:
         self.x_frame = self.X[:6].copy()
 
 
+@functools.lru_cache(maxsize=16)
 def _interval_mean_map(dt_s: float) -> F64:
     """``M`` (6, 12): the ``constant_acceleration`` state (twist at the interval's end, its
-    rate) to the mean twist over the interval of ``dt_s`` [s], ``twist - rate dt_s / 2``."""
+    rate) to the mean twist over the interval of ``dt_s`` [s], ``twist - rate dt_s / 2``
+    (cached: never change it)."""
     eye = np.eye(6)
     return np.hstack([eye, -0.5 * dt_s * eye])
 
@@ -985,11 +1048,54 @@ def _least_squares(J2: F64, W: F64, innovation: F64, x_prior: F64) -> tuple[F64,
     Returns:
         ``(m_ls (6,) [m/s, rad/s], J^T W J (6, 6))``, or None when ``J^T W J`` is singular.
     """
-    info = (J2.T * W) @ J2
+    JtW = J2.T * W
+    return _solved_fit(JtW @ J2, JtW @ innovation.reshape(-1), x_prior)
+
+
+def _solved_fit(info: F64, rhs: F64, x_prior: F64) -> tuple[F64, F64] | None:
+    """``(x_prior + info^-1 rhs, info)``, or None when ``info`` (6, 6) is singular or the
+    solution not finite."""
     try:
-        d = np.linalg.solve(info, (J2.T * W) @ innovation.reshape(-1))
+        d = np.linalg.solve(info, rhs)
     except np.linalg.LinAlgError:
         return None
     if not np.isfinite(d).all():
         return None
     return x_prior + d, info
+
+
+class _Prior:
+    """A prior covariance ``P`` (n, n) and its inverse, computed once."""
+
+    __slots__ = ("P", "P_inv")
+
+    def __init__(self, P: F64):
+        self.P = P
+        self.P_inv = np.asarray(np.linalg.inv(P), dtype=np.float64)
+
+
+class _Update:
+    """The information-form update of a prior by weighted linear rows: ``P+ = (P^-1 + J^T W
+    J)^-1`` (symmetrised), ``dx = P+ J^T W nu``.
+
+    Args:
+        prior: the prior covariance (n, n) and its inverse.
+        J2: (M, n) the rows.
+        innovation: (M,) or (M/2, 2) their innovations.
+        weight: (M,) their weights.
+    """
+
+    __slots__ = ("JtWJ", "rhs", "P_post", "dx")
+
+    def __init__(self, prior: _Prior, J2: F64, innovation: F64, weight: F64):
+        JtW = J2.T * weight  # (n, M)
+        self.JtWJ: F64 = JtW @ J2
+        self.rhs: F64 = JtW @ innovation.reshape(-1)
+        P_post = np.linalg.inv(prior.P_inv + self.JtWJ)
+        self.P_post: F64 = 0.5 * (P_post + P_post.T)
+        self.dx: F64 = self.P_post @ self.rhs
+
+    def least_squares(self, x_prior: F64) -> tuple[F64, F64] | None:
+        """The rows' own weighted least-squares solution about ``x_prior`` and its
+        information (:func:`_least_squares` of the same rows)."""
+        return _solved_fit(self.JtWJ, self.rhs, x_prior)

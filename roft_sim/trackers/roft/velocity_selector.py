@@ -51,7 +51,7 @@ TUM room1 with an earlier weight; docs/roft.md).
 
 from __future__ import annotations
 
-import dataclasses
+import copy
 
 import numpy as np
 from numpy.typing import NDArray
@@ -72,16 +72,13 @@ class SelectingVelocityKF:
 
     def __init__(self, config: VelocityKFConfig, width_px: int | None = None):
         """Args:
-        config: the settings (``motion_model = "auto"``); each model gets them with its own
-            ``motion_model``.
+        config: the settings (``motion_model = "auto"``).
         width_px: image width [px] for the resolution scaling of the flow noise.
         """
         self._config = config
-        self.constant = VelocityKF(dataclasses.replace(config, motion_model="constant"), width_px)
+        self.constant = VelocityKF(config, width_px, "constant")
         """The constant-twist model (the reference's filter)."""
-        self.accel = VelocityKF(
-            dataclasses.replace(config, motion_model="constant_acceleration"), width_px
-        )
+        self.accel = VelocityKF(config, width_px, "constant_acceleration")
         """The constant-acceleration model."""
         self.reset()
 
@@ -106,6 +103,13 @@ class SelectingVelocityKF:
         """(3,) the last fit's decoupling point ``c`` [m], camera frame: where the twists are
         scored and mixed (module docstring, step 2)."""
         self._combine()
+
+    def copy(self) -> SelectingVelocityKF:
+        """An independent copy of this filter and of its two models."""
+        out = copy.copy(self)
+        out.constant = self.constant.copy()
+        out.accel = self.accel.copy()
+        return out
 
     @property
     def updates(self) -> int:
@@ -152,8 +156,8 @@ class SelectingVelocityKF:
             if scored:
                 shift = twist_at_point_matrix(self.decoupling_point_m)  # (6, 6)
                 cov_c = shift @ cov_ls @ shift.T
-                s = np.array([_whitened_parts(shift @ (m_ls - p), cov_c) for p in predictions])
-                self._score(s)
+                errors = np.stack([shift @ (m_ls - p) for p in predictions])  # (2, 6)
+                self._score(_whitened_parts(errors, cov_c))
         self._combine()
         return True
 
@@ -202,9 +206,18 @@ class SelectingVelocityKF:
         model's."""
         self.P: F64 = self.constant.P.copy()
         """(6, 6) its covariance."""
-        self.x_frame: F64 = np.linalg.solve(shift, mixed)
+        self.x_frame: F64 = _twist_from_point(mixed, self.decoupling_point_m)
         """(6,) the twist (v_o [m/s], w [rad/s]) reported for the last frame: the two models'
         twists at the frame, mixed per part at the decoupling point (module docstring)."""
+
+
+def _twist_from_point(twist_at_c: F64, point_m: F64) -> F64:
+    """The spatial twist (6,) whose velocity at the body point ``point_m`` (3,) [m] is
+    ``twist_at_c`` (6,) = (v_c [m/s], w [rad/s]): the inverse of
+    :func:`~roft_sim.geometry.se3.twist_at_point_matrix`, ``v_o = v_c - w x c``."""
+    out = twist_at_c.copy()
+    out[:3] -= np.cross(twist_at_c[3:], point_m)
+    return out
 
 
 def _decoupling_point(cov: F64) -> F64:
@@ -217,16 +230,16 @@ def _decoupling_point(cov: F64) -> F64:
     return np.array([A[2, 1], A[0, 2], A[1, 0]])
 
 
-def _whitened_parts(error: F64, cov: F64) -> F64:
-    """``(e_v^T C_vv^-1 e_v, e_w^T C_ww^-1 e_w)`` (2,) [dimensionless] for ``error`` (6,) =
-    (e_v [m/s], e_w [rad/s]) and its covariance ``cov`` (6, 6): each part whitened by its
+def _whitened_parts(errors: F64, cov: F64) -> F64:
+    """``(e_v^T C_vv^-1 e_v, e_w^T C_ww^-1 e_w)`` (P, 2) [dimensionless] of ``errors`` (P, 6) =
+    (e_v [m/s], e_w [rad/s]) with the covariance ``cov`` (6, 6): each part whitened by its
     marginal covariance, at the scale the pixels determine it, also where a linear and an
     angular error compensate each other in the image (the full form ``e^T C^-1 e`` would not
-    see those; on TUNING it lowered e_v but raised e_w by 0.3-0.5 deg/s, docs/roft.md)."""
-    e_v, e_w = error[:3], error[3:]
-    return np.array(
-        [e_v @ np.linalg.solve(cov[:3, :3], e_v), e_w @ np.linalg.solve(cov[3:, 3:], e_w)]
-    )
+    see those; on the tuning split it lowered e_v but raised e_w by 0.3-0.5 deg/s)."""
+    e_v, e_w = errors[:, :3], errors[:, 3:]
+    s_v = np.einsum("pi,pi->p", e_v, np.linalg.solve(cov[:3, :3], e_v.T).T)
+    s_w = np.einsum("pi,pi->p", e_w, np.linalg.solve(cov[3:, 3:], e_w.T).T)
+    return np.stack([s_v, s_w], axis=1)
 
 
 _TINY = 1e-12
@@ -249,4 +262,4 @@ def make_velocity_filter(config: VelocityKFConfig, width_px: int | None = None) 
     """The velocity filter ``config.motion_model`` asks for."""
     if config.motion_model == "auto":
         return SelectingVelocityKF(config, width_px)
-    return VelocityKF(config, width_px)
+    return VelocityKF(config, width_px, "constant")
