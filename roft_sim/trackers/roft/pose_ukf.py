@@ -256,6 +256,7 @@ class PoseUKF:
         }
         self._sqrt_R = {k: np.diag(np.sqrt(r)) for k, r in self._R.items()}
         self._weights: dict[int, tuple[float, F64, F64]] = {}
+        self._noise_sqrts: dict[float, F64] = {}  # dt -> psd_sqrt(process_noise(dt))
 
     @property
     def config(self) -> PoseUKFConfig:
@@ -293,6 +294,16 @@ class PoseUKF:
         Q[3:6, 3:6] = self._Q_ww
         return Q
 
+    def _process_noise_sqrt(self, dt_s: float) -> F64:
+        """``psd_sqrt(process_noise(dt_s))`` (9, 9), kept per step length (the camera's frame
+        interval repeats)."""
+        root = self._noise_sqrts.get(dt_s)
+        if root is None:
+            if len(self._noise_sqrts) > 16:
+                self._noise_sqrts.clear()
+            root = self._noise_sqrts[dt_s] = psd_sqrt(self.process_noise(dt_s))
+        return root
+
     def coast_factor(self, coast_s: float, dt_s: float, block: Literal["v", "w"]) -> float:
         """``rho(t) / rho(t - dt)`` of the velocity block ``v`` or ``w`` for a prediction that
         ends ``coast_s`` = t seconds after the last velocity measurement (``rho`` the Gaussian
@@ -318,7 +329,7 @@ class PoseUKF:
         by the process noise as usual.
         """
         c, wm, wc = self._ut(21)
-        d = _sigma_offsets([psd_sqrt(belief.P), psd_sqrt(self.process_noise(dt_s))], c)
+        d = _sigma_offsets([psd_sqrt(belief.P), self._process_noise_sqrt(dt_s)], c)
         dx, dn = d[:, :12], d[:, 12:]
         x = belief.x + dx[:, :9]
         q = _qmul(_qexp(dx[:, 9:12]), belief.q)

@@ -688,6 +688,8 @@ class VelocityKF:
         """Number of corrections so far (0: the twist is the prior, no flow has been used)."""
         self._priors: dict[tuple[float | None, ...], tuple[F64, _Prior]] = {}
         self._transitions: dict[float, tuple[F64, F64]] = {}
+        self.rows: _Rows | None = None
+        """The weighted rows of the last update (None before it)."""
         self.fit: tuple[F64, F64] | None = None
         """The pixels of the last update on their own: their weighted least-squares interval-mean
         twist ``m_ls`` (6,) [m/s, rad/s] and its information ``P_ls^-1`` (6, 6) (the robust
@@ -735,7 +737,7 @@ class VelocityKF:
             lik = lik * measurement.cell_weight
         R = self._R
         J2 = J.reshape(-1, 6)
-        dx = _Update(prior, J2, innovation, (lik[:, None] / R[None, :]).reshape(-1)).dx
+        dx = _update_step(prior, J2, innovation, (lik[:, None] / R[None, :]).reshape(-1))
         if with_noise and cfg.adapt_flow_noise:
             residual = y - flow_rows_at(J, x_prior + dx)
             spread = MAD_TO_SIGMA * column_medians(np.abs(residual))
@@ -776,9 +778,7 @@ class VelocityKF:
         ratio = (spread / float(self._config.exact_flow_spread_px or np.inf)) ** 2
         return min(max(ratio, _EXACT_FLOW_NOISE_RATIO), 1.0)
 
-    def _weighted_rows(
-        self, measurement: FlowMeasurement, x_prior: F64, prior: _Prior
-    ) -> tuple[F64, F64, F64, F64]:
+    def _weighted_rows(self, measurement: FlowMeasurement, x_prior: F64, prior: _Prior) -> _Rows:
         """Every measurement row of one update, weighted, from the prior twist.
 
         Args:
@@ -787,11 +787,10 @@ class VelocityKF:
             prior: its covariance (and inverse).
 
         Returns:
-            ``(J (M, 6), W (M,), innovation (M,), R (2,) [px^2])``: the flow's two rows per
-            pixel (``dt * J`` [px per (m/s), px per (rad/s)], weights ``lik / R`` [1/px^2],
-            innovations [px]; :meth:`_robust_weights`, R times :meth:`_exact_flow_ratio`)
-            followed by the depth-change rows ([m per (m/s), m per (rad/s)], [1/m^2], [m];
-            :func:`_depth_rate_weights`), and the flow noise.
+            The flow's two rows per pixel (``dt * J`` [px per (m/s), px per (rad/s)], weights
+            ``lik / R`` [1/px^2], values [px]; :meth:`_robust_weights`, R times
+            :meth:`_exact_flow_ratio`) followed by the depth-change rows ([m per (m/s), m per
+            (rad/s)], [1/m^2], [m]; :func:`_depth_rate_weights`), and the flow noise.
         """
         innovation, lik, R, _ = self._robust_weights(measurement, x_prior, prior)
         cfg = self._config
@@ -800,6 +799,7 @@ class VelocityKF:
             R = R * self._exact_flow_ratio(measurement, lik, innovation, x_prior, R)
         J = measurement.J.reshape(-1, 6)
         W = (lik[:, None] / R[None, :]).reshape(-1)
+        z = measurement.y_px.reshape(-1)
         nu = innovation.reshape(-1)
         rows = measurement.depth_rate
         if rows is not None and self._config.depth_rate and len(rows):
@@ -807,8 +807,9 @@ class VelocityKF:
             nu_z, W_z = _depth_rate_weights(rows, x_prior, flow_sigma_px, self._config)
             J = np.vstack([J, rows.J])
             W = np.concatenate([W, W_z])
+            z = np.concatenate([z, rows.dz_m])
             nu = np.concatenate([nu, nu_z])
-        return J, W, nu, R
+        return _Rows(J, W, z, R, x_prior, nu)
 
     def step(
         self,
@@ -842,15 +843,16 @@ class VelocityKF:
                     "the constant-acceleration model needs the frame time t_s and the "
                     "interval dt_s the flow spans"
                 )
-            self._step_constant_acceleration(measurement, t_s, dt_s)
-            self.updates += 1
+            mean_pred, prior = self._interval_prior(frames, t_s, dt_s)
+            self.correct_with_rows(self._weighted_rows(measurement, mean_pred, prior), t_s, dt_s)
             return True
         self.updates += 1
         x_pred, prior = self._interval_prior(frames, t_s, dt_s)
-        J2, W, innovation, R = self._weighted_rows(measurement, x_pred, prior)
-        update = _Update(prior, J2, innovation, W)
-        self.flow_sigma_px = np.sqrt(R)
+        rows = self._weighted_rows(measurement, x_pred, prior)
+        update = _Update(prior, rows.J, rows.innovation, rows.W)
+        self.flow_sigma_px = np.sqrt(rows.R)
         self.fit = update.least_squares(x_pred)
+        self.rows = rows
         x_new = x_pred + update.dx
         self.x_frame = x_new
         self.x = x_new
@@ -963,10 +965,11 @@ class VelocityKF:
         self.P = P_ls.copy()
         self.x_frame = m_ls.copy()
 
-    def _step_constant_acceleration(
-        self, measurement: FlowMeasurement, t_s: float, dt_s: float
-    ) -> None:
-        """One predict/correct of the constant-acceleration state.
+    def correct_with_rows(self, rows: _Rows, t_s: float, dt_s: float) -> None:
+        """One predict/correct of the constant-acceleration state with the weighted rows of
+        the interval (its own, or those the constant model of ``auto`` weighed: the rows'
+        weights are robust statistics of the flow, the same for either prior to first
+        order, and the pixels' least-squares twist they give is then the constant model's).
 
         Predicts ``X`` from its time to ``t_s`` (``F = [[I, h I], [0, I]]``, white jerk
         ``Q = q [[h^3/3, h^2/2], [h^2/2, h]]`` per component). The flow over ``(t_s - dt_s, t_s]``
@@ -982,13 +985,14 @@ class VelocityKF:
         twist at ``t_s`` in ``x_frame``.
         """
         cfg = self._config
+        self.updates += 1
         X_pred, P_pred = self._predict_constant_acceleration(t_s, dt_s)
         M = _interval_mean_map(dt_s)
         mean_pred, prior = self._interval_prior(1.0, t_s, dt_s)  # M X-, M P- M^T
         P_mean = prior.P
-        # the constant model's weights and flow noise, with the interval mean as the prior
-        J2, W, innovation, R = self._weighted_rows(measurement, mean_pred, prior)
-        self.flow_sigma_px = np.sqrt(R)
+        J2, W, innovation = rows.J, rows.W, rows.innovation_at(mean_pred)
+        self.flow_sigma_px = np.sqrt(rows.R)
+        self.rows = rows
         self._priors.clear()
         JtW = J2.T * W
         info_ls = JtW @ J2
@@ -1005,7 +1009,7 @@ class VelocityKF:
             P_ls = 0.5 * (P_ls + P_ls.T)
             nu = P_ls @ (JtW @ innovation.reshape(-1))  # m_ls - M X-
             self.fit = (mean_pred + nu, info_ls)
-            if self.updates == 0:
+            if self.updates == 1:
                 self._initialise_constant_acceleration(mean_pred + nu, P_ls, P_pred, t_s, dt_s)
                 return
             keep = 1.0 - 1.0 / cfg.rate_noise_memory
@@ -1064,6 +1068,32 @@ def _solved_fit(info: F64, rhs: F64, x_prior: F64) -> tuple[F64, F64] | None:
     return x_prior + d, info
 
 
+@dataclass(frozen=True, slots=True)
+class _Rows:
+    """Every weighted measurement row of one update: the flow's two rows per pixel, then any
+    depth-change rows (:meth:`VelocityKF._weighted_rows`)."""
+
+    J: F64
+    """(M, 6) the rows [px per (m/s), px per (rad/s); m per (m/s), m per (rad/s)]."""
+    W: F64
+    """(M,) their weights [1/px^2, 1/m^2]."""
+    z: F64
+    """(M,) the measured values [px, m]."""
+    R: F64
+    """(2,) the flow noise variance [px^2]."""
+    x_prior: F64
+    """(6,) the twist the weights were taken about [m/s, rad/s]."""
+    innovation: F64
+    """(M,) ``z - J x_prior`` (the depth rows' as their weights saw it)."""
+
+    def innovation_at(self, x: F64) -> F64:
+        """(M,) the rows' innovations from the twist ``x`` (6,)."""
+        if x is self.x_prior:
+            return self.innovation
+        out: F64 = self.z - self.J @ x
+        return out
+
+
 class _Prior:
     """A prior covariance ``P`` (n, n) and its inverse, computed once."""
 
@@ -1072,6 +1102,13 @@ class _Prior:
     def __init__(self, P: F64):
         self.P = P
         self.P_inv = np.asarray(np.linalg.inv(P), dtype=np.float64)
+
+
+def _update_step(prior: _Prior, J2: F64, innovation: F64, weight: F64) -> F64:
+    """The update ``dx`` (n,) of :class:`_Update` alone (one solve, no posterior covariance)."""
+    JtW = J2.T * weight
+    out = np.linalg.solve(prior.P_inv + JtW @ J2, JtW @ innovation.reshape(-1))
+    return np.asarray(out, dtype=np.float64)
 
 
 class _Update:

@@ -147,7 +147,9 @@ class SelectingVelocityKF:
         )
         if not self.constant.step(measurement, frames=frames, t_s=t_s, dt_s=dt_s):
             return False
-        self.accel.step(measurement, frames=frames, t_s=t_s, dt_s=dt_s)
+        # the same weighted rows for both models: one weighing of the flow per frame
+        assert self.constant.rows is not None
+        self.accel.correct_with_rows(self.constant.rows, t_s, dt_s)
         fit = self.constant.fit
         if fit is not None:
             m_ls, info_ls = fit
