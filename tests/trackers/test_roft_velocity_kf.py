@@ -24,6 +24,7 @@ from roft_sim.trackers.roft.velocity_kf import (
     FlowMeasurement,
     VelocityKF,
     _depth_rate_weights,
+    _edge_pixel_labels,
     depth_rate_rows,
     finite_motion_flow,
     flow_jacobian,
@@ -682,3 +683,26 @@ def test_depth_rate_rows_on_a_steep_flank_weigh_less():
     np.testing.assert_allclose(rows.slope_m_per_px, np.where(u < 80, 0.002, 0.008), rtol=1e-9)
     _, weight = _depth_rate_weights(rows, np.zeros(6), 1.0, cfg)
     assert (weight[u < 80] > 4 * weight[u >= 80]).all(), weight
+
+
+def test_edge_pixel_labels_match_a_search_of_each_pixels_neighbours():
+    """Each edge pixel joins its 8-neighbour nearest in depth among the labelled ones within
+    the jump (the first in the scan order on a tie), against a per-pixel loop."""
+    rng = np.random.default_rng(5)
+    h, w, jump = 20, 30, 0.03
+    labels = rng.integers(0, 4, (h, w)).astype(np.int32)
+    z = rng.uniform(0.5, 0.6, (h, w)).astype(np.float32)
+    z[rng.random((h, w)) < 0.1] = 0.52  # ties
+    rows, cols = np.nonzero(labels == 0)
+    got = _edge_pixel_labels(labels, z, rows, cols, jump)
+    for i, (r, c) in enumerate(zip(rows, cols, strict=True)):
+        best, expected = np.inf, 0
+        for dv in (-1, 0, 1):
+            for du in (-1, 0, 1):
+                rr, cc = r + dv, c + du
+                if (dv, du) == (0, 0) or not (0 <= rr < h and 0 <= cc < w) or labels[rr, cc] <= 0:
+                    continue
+                gap = abs(float(z[rr, cc]) - float(z[r, c]))
+                if gap <= jump and gap < best:
+                    best, expected = gap, labels[rr, cc]
+        assert got[i] == expected, (r, c)

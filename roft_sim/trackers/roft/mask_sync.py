@@ -71,22 +71,50 @@ class MaskWindow:
     """Image column of the window's first column."""
 
 
-@dataclass(frozen=True, slots=True)
 class PixelSet:
     """The pixels of a mask in row-major order: linear indices ``v * W + u`` (sorted, unique)
-    with their columns and rows."""
+    with their columns and rows.
 
-    index: I64
-    """(N,) int64 linear pixel indices, ascending."""
-    u: I64
-    """(N,) int64 columns."""
-    v: I64
-    """(N,) int64 rows."""
-    shape: tuple[int, int]
-    """(H, W) of the image."""
-    window: MaskWindow | None = field(default=None, compare=False, repr=False)
-    """The same mask as a window bitmap when it was made from one (morphology then needs no
-    new bitmap)."""
+    Made from those arrays, or from a window bitmap (:meth:`from_window`), whose arrays are then
+    computed when first asked for: a mask a step only subsamples (the velocity filter reads
+    every 35th pixel, the outlier test every 2nd) never materialises its full index arrays.
+    """
+
+    __slots__ = ("shape", "window", "_index", "_u", "_v", "_size")
+
+    def __init__(
+        self,
+        index: I64,
+        u: I64,
+        v: I64,
+        shape: tuple[int, int],
+        window: MaskWindow | None = None,
+    ):
+        """Args:
+        index: (N,) int64 linear pixel indices, ascending.
+        u: (N,) int64 columns.
+        v: (N,) int64 rows.
+        shape: (H, W) of the image.
+        window: the same mask as a window bitmap, when there is one.
+        """
+        self.shape = shape
+        """(H, W) of the image."""
+        self.window = window
+        """The same mask as a window bitmap when it was made from one (morphology then needs no
+        new bitmap)."""
+        self._index: I64 | None = index
+        self._u: I64 | None = u
+        self._v: I64 | None = v
+        self._size = int(index.shape[0])
+
+    @classmethod
+    def from_window(cls, window: MaskWindow, shape: tuple[int, int]) -> PixelSet:
+        """The set pixels of a window bitmap, all inside the image of ``shape`` (H, W)."""
+        out = cls.__new__(cls)
+        out.shape, out.window = shape, window
+        out._index = out._u = out._v = None
+        out._size = int(np.count_nonzero(window.bits))
+        return out
 
     @classmethod
     def from_mask(cls, mask: NDArray[np.bool_]) -> PixelSet:
@@ -108,11 +136,58 @@ class PixelSet:
         return cls(z, z, z, shape)
 
     def __len__(self) -> int:
-        return int(self.index.shape[0])
+        return self._size
+
+    @property
+    def index(self) -> I64:
+        """(N,) int64 linear pixel indices ``v * W + u``, ascending."""
+        if self._index is None:
+            self._index, self._u, self._v = self.strided(1)
+        return self._index
+
+    @property
+    def u(self) -> I64:
+        """(N,) int64 columns."""
+        if self._u is None:
+            self._index, self._u, self._v = self.strided(1)
+        return self._u
+
+    @property
+    def v(self) -> I64:
+        """(N,) int64 rows."""
+        if self._v is None:
+            self._index, self._u, self._v = self.strided(1)
+        return self._v
+
+    def strided(self, step: int) -> tuple[I64, I64, I64]:
+        """``(index, u, v)`` of every ``step``-th pixel in row-major order."""
+        if self._index is not None and self._u is not None and self._v is not None:
+            return self._index[::step], self._u[::step], self._v[::step]
+        assert self.window is not None  # a lazy set always has its bitmap
+        bits = self.window.bits
+        cols = bits.shape[1]
+        flat = np.flatnonzero(bits.view(np.bool_))[::step]
+        rr = flat // cols
+        cc = flat - rr * cols + self.window.c0
+        rr += self.window.r0
+        return rr * self.shape[1] + cc, cc, rr
+
+    def values_at(self, image: NDArray[np.floating]) -> NDArray[np.floating]:
+        """(N,) the values of an (H, W) image at the pixels, in row-major order."""
+        if self._index is not None or self.window is None:
+            return np.take(image.reshape(-1), self.index)
+        w = self.window
+        r_lo, c_lo = max(0, -w.r0), max(0, -w.c0)
+        bits = w.bits[r_lo:, c_lo:]
+        rows, cols = bits.shape
+        crop = image[w.r0 + r_lo : w.r0 + r_lo + rows, w.c0 + c_lo : w.c0 + c_lo + cols]
+        out: NDArray[np.floating] = crop[bits[: crop.shape[0], : crop.shape[1]].view(np.bool_)]
+        return out
 
     def uv(self, stride: int = 1) -> tuple[I64, I64]:
         """Columns u and rows v ``(M,)`` of every ``stride``-th pixel in row-major order."""
-        return self.u[::stride], self.v[::stride]
+        _, u, v = self.strided(stride)
+        return u, v
 
     def to_mask(self) -> NDArray[np.bool_]:
         """The (H, W) bool mask."""
@@ -230,12 +305,7 @@ def _pixels_in_window(
     """The set pixels of a 0/1 bitmap whose top-left pixel is image pixel ``(r0, c0)``, all
     inside the image of ``shape`` (H, W), in row-major order (the bitmap is kept with them: do
     not change it afterwards)."""
-    cols = window.shape[1]
-    flat = np.flatnonzero(window.view(np.bool_))
-    rr = flat // cols
-    cc = flat - rr * cols + c0
-    rr += r0
-    return PixelSet(rr * shape[1] + cc, cc, rr, shape, MaskWindow(window, r0, c0))
+    return PixelSet.from_window(MaskWindow(window, r0, c0), shape)
 
 
 def erode_pixels(pixels: PixelSet, radius_px: int) -> PixelSet:
@@ -458,7 +528,7 @@ def metric_erosion(
     """:func:`metric_erosion_px`'s radius and the mask eroded by it (``pixels`` itself for 0)."""
     if len(pixels) == 0 or erosion_m <= 0:
         return 0, pixels
-    z = np.take(depth_m.reshape(-1), pixels.index)
+    z = pixels.values_at(depth_m)
     z = z[np.isfinite(z) & (z > 0)]
     if z.size == 0:
         return 0, pixels

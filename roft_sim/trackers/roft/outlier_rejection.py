@@ -57,7 +57,7 @@ def depth_samples(
     pixels: PixelSet, depth_m: NDArray[np.floating], config: OutlierRejectionConfig
 ) -> DepthSamples:
     """Every ``pixel_stride``-th mask pixel (row-major) and the measured depth there."""
-    index = pixels.index[:: config.pixel_stride]
+    index = pixels.strided(config.pixel_stride)[0]
     return DepthSamples(index, np.take(depth_m.reshape(-1), index), pixels.shape[1])
 
 

@@ -356,7 +356,7 @@ _NEIGHBOURS_8 = ((-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (
 
 def _edge_pixel_labels(
     labels: NDArray[np.int32],
-    z: F64,
+    z: NDArray[np.floating],
     rows: NDArray[np.int64],
     cols: NDArray[np.int64],
     jump_m: float,
@@ -427,7 +427,9 @@ def occluder_free(
     r_hi, c_hi = min(rows, h - window.r0), min(cols, w - window.c0)
     box = window.bits[r_lo:r_hi, c_lo:c_hi].astype(bool)
     v0, u0 = window.r0 + r_lo, window.c0 + c_lo
-    zb = np.asarray(depth_m[v0 : v0 + box.shape[0], u0 : u0 + box.shape[1]], dtype=np.float64)
+    zb = depth_m[v0 : v0 + box.shape[0], u0 : u0 + box.shape[1]]
+    if zb.dtype != np.float32:  # (float32 depths: their near differences are exact in float32)
+        zb = zb.astype(np.float64)
     box &= zb > 0.0
     cut = np.zeros_like(box)
     dx = (np.abs(np.diff(zb, axis=1)) > jump) & box[:, 1:] & box[:, :-1]
@@ -526,8 +528,7 @@ def flow_measurement(
             None: the flow alone.
     """
     step = stride if stride is not None else config.subsampling_stride
-    index = pixels.index[::step]
-    u, v = pixels.u[::step], pixels.v[::step]
+    index, u, v = pixels.strided(step)
     z = np.take(depth_m.reshape(-1), index).astype(np.float64)
     w = pixels.shape[1]
     dense = flow.flow_px.shape[:2] == pixels.shape  # read at the pixels' own indices
