@@ -461,15 +461,12 @@ def track_points(points: TrackedPoints, flow: FlowField, *, cleanup: str) -> Tra
     vi = (v + 0.5).astype(np.int32)
     dense = flow.grid_px == 1 and flow.flow_px.shape[:2] == shape
     f, ok = lookup_flow(flow, ui, vi, vi * w + ui if dense else None)
-    if ok.all():
-        u = u + f.real
-        v = v + f.imag
-    else:
-        u = u[ok] + f.real[ok]
-        v = v[ok] + f.imag[ok]
-    inside = (u >= -0.5) & (u < w - 0.5) & (v >= -0.5) & (v < h - 0.5)
-    if not inside.all():
-        u, v = u[inside], v[inside]
+    u = u + f.real
+    v = v + f.imag
+    # kept: a valid flow vector that leaves the point in the image
+    ok &= (u >= -0.5) & (u < w - 0.5) & (v >= -0.5) & (v < h - 0.5)
+    if not ok.all():
+        u, v = u[ok], v[ok]
     if u.size == 0:
         return TrackedPoints(u, v, PixelSet.empty(shape))
     ui = (u + 0.5).astype(np.int32)
@@ -484,18 +481,27 @@ def track_points(points: TrackedPoints, flow: FlowField, *, cleanup: str) -> Tra
     np.minimum.at(owner, (vi - r0) * cols + (ui - c0), np.arange(n, dtype=np.int32))
     landed = owner < n
     first = owner[landed]  # in row-major pixel order
-    u, v = u[first], v[first]
     hit = landed.view(np.uint8).reshape(rows, cols)
-    if cleanup == "none":
-        return TrackedPoints(u, v, _pixels_in_window(hit, r0, c0, shape))
-    closed = _closed(hit)
-    _clip_to_image(closed, r0, c0, shape)
-    filled = closed & ~hit & _eroded(closed, 1)  # filled pixels inside the closed mask
-    if filled.any():
-        new = _pixels_in_window(filled, r0, c0, shape)
-        u = np.concatenate([u, new.u.astype(np.float64)])
-        v = np.concatenate([v, new.v.astype(np.float64)])
-    return TrackedPoints(u, v, _pixels_in_window(closed, r0, c0, shape))
+    filled: NDArray[np.uint8] | None = None
+    if cleanup == "close":
+        closed = _closed(hit)
+        _clip_to_image(closed, r0, c0, shape)
+        filled = closed & ~hit & _eroded(closed, 1)  # filled pixels inside the closed mask
+        pixels = _pixels_in_window(closed, r0, c0, shape)
+    else:
+        pixels = _pixels_in_window(hit, r0, c0, shape)
+    new = _pixels_in_window(filled, r0, c0, shape) if filled is not None else None
+    # the kept points, then one at the centre of each filled pixel
+    m = first.size
+    extra = len(new) if new is not None else 0
+    u_out, v_out = np.empty(m + extra), np.empty(m + extra)
+    np.take(u, first, out=u_out[:m])
+    np.take(v, first, out=v_out[:m])
+    if new is not None and extra:
+        _, new_u, new_v = new.strided(1)
+        u_out[m:] = new_u
+        v_out[m:] = new_v
+    return TrackedPoints(u_out, v_out, pixels)
 
 
 def metric_erosion_px(
