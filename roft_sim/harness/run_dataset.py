@@ -286,6 +286,7 @@ def run_sequences(
             "sequences": described,
             "layout": layout,
             "reference_config": None if tree is None else tree.config_name,
+            "reference_experiments": None if tree is None else list(tree.experiments),
             "versions": package_versions("mujoco", "scipy"),
             "wall_s": round(wall_s, 3),
         },
