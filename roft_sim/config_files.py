@@ -180,36 +180,14 @@ def _type_name(tp: Any) -> str:
     return getattr(tp, "__name__", None) or str(tp).replace("typing.", "")
 
 
-def _convert(tp: Any, value: Any, where: str) -> Any:  # noqa: C901 - one branch per type kind
+def _convert(tp: Any, value: Any, where: str) -> Any:
     origin = get_origin(tp)
     if tp is Any:
         return value
     if dataclasses.is_dataclass(tp) and isinstance(tp, type):
         return _build_dataclass(tp, value, where)
     if origin in (typing.Union, types.UnionType):
-        args = get_args(tp)
-        if value is None and type(None) in args:
-            return None
-        options = [a for a in args if a is not type(None)]
-        if (
-            value == NONE_SPELLING
-            and type(None) in args
-            and not any(_takes_strings(a) for a in options)
-        ):
-            return None
-        dc_options: list[Any] = [a for a in options if dataclasses.is_dataclass(a)]
-        if dc_options and isinstance(value, Mapping):
-            return _convert_tagged_union(dc_options, value, where)
-        if len(options) == 1:  # Optional[X]: keep X's own message (it says what is expected)
-            return _convert(options[0], value, where)
-        for option in options:
-            try:
-                return _convert(option, value, where)
-            except ConfigError:
-                continue
-        raise ConfigError(
-            f"{where}: {value!r} matches none of {' | '.join(_type_name(a) for a in args)}"
-        )
+        return _convert_union(get_args(tp), value, where)
     if origin is Literal:
         allowed = get_args(tp)
         if value not in allowed or type(value) is not type(allowed[allowed.index(value)]):
@@ -217,6 +195,53 @@ def _convert(tp: Any, value: Any, where: str) -> Any:  # noqa: C901 - one branch
                 f"{where}: got {value!r}, expected one of {', '.join(repr(a) for a in allowed)}"
             )
         return value
+    if tp in (bool, int, float, str, Path):
+        return _convert_scalar(tp, value, where)
+    if isinstance(tp, type) and issubclass(tp, enum.Enum):
+        try:
+            return tp(value)
+        except ValueError:
+            members = ", ".join(repr(m.value) for m in tp)
+            raise ConfigError(f"{where}: got {value!r}, expected one of {members}") from None
+    if origin in (tuple, list):
+        return _convert_sequence(tp, value, where)
+    if origin in (dict, Mapping) or tp is dict:
+        if not isinstance(value, Mapping):
+            raise ConfigError(f"{where}: expected a table, got {value!r}")
+        args = get_args(tp)
+        val_tp = args[1] if len(args) == 2 else Any
+        return {str(k): _convert(val_tp, v, _field_path(where, str(k))) for k, v in value.items()}
+    raise TypeError(f"config_files cannot convert to type {tp!r} (at {where})")
+
+
+def _convert_union(args: tuple[Any, ...], value: Any, where: str) -> Any:
+    """``value`` as the first of the union's members ``args`` it converts to."""
+    if value is None and type(None) in args:
+        return None
+    options = [a for a in args if a is not type(None)]
+    if (
+        value == NONE_SPELLING
+        and type(None) in args
+        and not any(_takes_strings(a) for a in options)
+    ):
+        return None
+    dc_options: list[Any] = [a for a in options if dataclasses.is_dataclass(a)]
+    if dc_options and isinstance(value, Mapping):
+        return _convert_tagged_union(dc_options, value, where)
+    if len(options) == 1:  # Optional[X]: keep X's own message (it says what is expected)
+        return _convert(options[0], value, where)
+    for option in options:
+        try:
+            return _convert(option, value, where)
+        except ConfigError:
+            continue
+    raise ConfigError(
+        f"{where}: {value!r} matches none of {' | '.join(_type_name(a) for a in args)}"
+    )
+
+
+def _convert_scalar(tp: type, value: Any, where: str) -> Any:
+    """``value`` as a bool, int, float, str or Path (TOML's booleans are not numbers)."""
     if tp is bool:
         if not isinstance(value, bool):
             raise ConfigError(f"{where}: expected true or false, got {value!r}")
@@ -233,38 +258,28 @@ def _convert(tp: Any, value: Any, where: str) -> Any:  # noqa: C901 - one branch
         if not isinstance(value, str):
             raise ConfigError(f"{where}: expected a string, got {value!r}")
         return value
-    if tp is Path:
-        if not isinstance(value, str | Path):
-            raise ConfigError(f"{where}: expected a path string, got {value!r}")
-        return Path(value)
-    if isinstance(tp, type) and issubclass(tp, enum.Enum):
-        try:
-            return tp(value)
-        except ValueError:
-            members = ", ".join(repr(m.value) for m in tp)
-            raise ConfigError(f"{where}: got {value!r}, expected one of {members}") from None
-    if origin in (tuple, list):
-        if not isinstance(value, list | tuple):
-            raise ConfigError(f"{where}: expected a list, got {value!r}")
-        args = get_args(tp)
-        if origin is tuple and args and args[-1] is not Ellipsis:
-            if len(value) != len(args):
-                raise ConfigError(f"{where}: expected {len(args)} values, got {len(value)}")
-            items = [
-                _convert(a, v, _field_path(where, i))
-                for i, (a, v) in enumerate(zip(args, value, strict=True))
-            ]
-        else:
-            item_tp = args[0] if args else Any
-            items = [_convert(item_tp, v, _field_path(where, i)) for i, v in enumerate(value)]
-        return tuple(items) if origin is tuple else items
-    if origin in (dict, Mapping) or tp is dict:
-        if not isinstance(value, Mapping):
-            raise ConfigError(f"{where}: expected a table, got {value!r}")
-        args = get_args(tp)
-        val_tp = args[1] if len(args) == 2 else Any
-        return {str(k): _convert(val_tp, v, _field_path(where, str(k))) for k, v in value.items()}
-    raise TypeError(f"config_files cannot convert to type {tp!r} (at {where})")
+    if not isinstance(value, str | Path):
+        raise ConfigError(f"{where}: expected a path string, got {value!r}")
+    return Path(value)
+
+
+def _convert_sequence(tp: Any, value: Any, where: str) -> Any:
+    """``value`` as ``tuple[...]`` (fixed length or ``...``) or ``list[...]``."""
+    if not isinstance(value, list | tuple):
+        raise ConfigError(f"{where}: expected a list, got {value!r}")
+    origin = get_origin(tp)
+    args = get_args(tp)
+    if origin is tuple and args and args[-1] is not Ellipsis:
+        if len(value) != len(args):
+            raise ConfigError(f"{where}: expected {len(args)} values, got {len(value)}")
+        items = [
+            _convert(a, v, _field_path(where, i))
+            for i, (a, v) in enumerate(zip(args, value, strict=True))
+        ]
+    else:
+        item_tp = args[0] if args else Any
+        items = [_convert(item_tp, v, _field_path(where, i)) for i, v in enumerate(value)]
+    return tuple(items) if origin is tuple else items
 
 
 def _convert_tagged_union(options: list[type], value: Mapping[str, Any], where: str) -> Any:

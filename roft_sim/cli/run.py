@@ -279,11 +279,33 @@ def print_interval_velocity_table(summaries: dict[str, dict[str, Any]]) -> None:
 
 
 def _print_reference_note(tree: Any) -> None:
-    print(
-        f"reference tree in {tree.root} (config {tree.config_name}): from there, "
-        "python <roft>/evaluation/evaluate.py --experiment-name exp_fastycb_roft --metric-name mix",
-        file=sys.stderr,
-    )
+    from roft_sim.harness.reference_layout import REFERENCE_EXPERIMENTS, REFERENCE_ROFT_CONFIG
+
+    where = f"reference tree in {tree.root} (config {tree.config_name})"
+    if "exp_fastycb_roft" in tree.experiments:
+        print(
+            f"{where}: from there, python <roft>/evaluation/evaluate.py --experiment-name "
+            "exp_fastycb_roft --metric-name mix",
+            file=sys.stderr,
+        )
+    elif tree.experiments:
+        others = sorted(
+            {c for e in tree.experiments for c in REFERENCE_EXPERIMENTS[e]} - {tree.config_name}
+        )
+        print(
+            f"{where}: read by the reference's {', '.join(tree.experiments)} together with the "
+            f"configs {', '.join(others)} (merge the trees of those runs, then run "
+            "python <roft>/evaluation/evaluate.py --experiment-name <experiment> from there)",
+            file=sys.stderr,
+        )
+    else:
+        print(
+            f"{where}: no experiment of the reference's evaluation reads this config (evaluate.py "
+            "would stop on the first file it opens, execution_times.txt, of the config its "
+            f"experiment names); rerun with --reference-config {REFERENCE_ROFT_CONFIG} to have "
+            "exp_fastycb_roft score this run as its ROFT row",
+            file=sys.stderr,
+        )
     if tree.missing_objects:
         print(
             f"note: the reference evaluation loads all six Fast-YCB objects; this tree lacks "
@@ -335,6 +357,7 @@ def _run(args: argparse.Namespace) -> int:
         if result.reference_tree is not None:
             summary["reference"] = {
                 "config": result.reference_tree.config_name,
+                "experiments": list(result.reference_tree.experiments),
                 "missing_objects": list(result.reference_tree.missing_objects),
             }
         print(json.dumps(summary, indent=2))

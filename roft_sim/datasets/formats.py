@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 from collections.abc import Iterator, Mapping
+from collections.abc import Sequence as SequenceABC
 from pathlib import Path
 from typing import Any, Literal, cast
 
@@ -31,6 +32,7 @@ __all__ = [
     "open_sequence",
     "detect_format",
     "list_sequences",
+    "find_sequences",
     "dataset_frames",
     "write_sequence",
 ]
@@ -215,6 +217,29 @@ def list_sequences(root: str | Path, *, max_depth: int = 3) -> list[Path]:
     if not root.exists():
         raise DatasetFormatError(f"dataset root {located(root)} does not exist")
     visit(root, 0)
+    return found
+
+
+def find_sequences(paths: SequenceABC[str | Path]) -> list[Path]:
+    """Sequence paths under ``paths``: each is a sequence (folder or ``.h5``) or a dataset root.
+
+    Raises:
+        DatasetFormatError: a path does not exist or holds no sequence.
+    """
+    found: list[Path] = []
+    for p in map(Path, paths):
+        if not p.exists():
+            raise DatasetFormatError(
+                f"dataset path {str(p)!r} does not exist; give a sequence folder, an .h5 file or "
+                "a dataset root (e.g. the folder `roft-sim generate --out` wrote)"
+            )
+        sequences = list_sequences(p)
+        if not sequences:
+            raise DatasetFormatError(
+                f"no sequence found under {str(p)!r}: expected Fast-YCB folders (cam_K.json + "
+                "data.txt), BOP scenes or .h5 files, up to 3 levels deep"
+            )
+        found.extend(sequences)
     return found
 
 

@@ -927,6 +927,68 @@ def _per_object_motions(
     ]
 
 
+def _table4_order_lines(
+    results: dict[str, RowMetrics], paper: PaperTables, configurations: Sequence[str]
+) -> list[str]:
+    """The ``tables.md`` section on the order of the nine ROFT rows (Kendall tau)."""
+    md = ["## Table IV: order of the nine ROFT rows (Kendall tau, paper vs sim)", ""]
+    for configuration in configurations:
+        if configuration not in results:
+            continue
+        md.append(f"Configuration `{configuration}`:")
+        for order in table4_order(results, paper, configuration=configuration):
+            tau = "n/a" if order.kendall_tau is None else f"{order.kendall_tau:+.3f}"
+            md.append(
+                f"- {order.metric}: tau {tau} over {order.rows} rows; paper best to worst "
+                f"{', '.join(order.paper_order)}; sim {', '.join(order.sim_order)}"
+            )
+        md.append("")
+    return md
+
+
+def _per_object_motion_section(out: Path, motions: Sequence[PerObjectMotion]) -> list[str]:
+    """The ``tables.md`` section of the per-object motion tables (none without tables); writes
+    ``per_object_motion_<configuration>.csv`` for each."""
+    if not motions:
+        return []
+    md = [
+        "## Per object: does the difference follow the motion? (paper / sim velocity errors)",
+        "",
+        "ROFT fed the masks as they arrive (w/o segm. sync.) reads its velocity from flow on "
+        "a mask 6-12 frames old, so its velocity error grows with how far the object moves "
+        "in that delay; a paper / sim ratio above 1 says the paper's sequence of that object "
+        "moved faster relative to its size than the simulated one. Rank correlation: "
+        "Spearman's, over the objects, between the ADD-AUC difference and the stale-mask e_v "
+        "ratio.",
+        "",
+    ]
+    for motion in motions:
+        rho = "n/a" if motion.rank_correlation is None else f"{motion.rank_correlation:+.2f}"
+        md += [
+            f"Configuration `{motion.configuration}` (rank correlation {rho}):",
+            "",
+            markdown_table(motion.columns, motion.rows),
+        ]
+        atomic_write_text(
+            out / f"per_object_motion_{motion.configuration}.csv",
+            csv_table(motion.columns, motion.rows),
+        )
+    return md
+
+
+def _findings_lines(configurations: Sequence[str], findings: Sequence[Finding]) -> list[str]:
+    """The ``tables.md`` section of the paper's findings, per configuration."""
+    md = ["## The paper's findings, checked", ""]
+    for configuration in configurations:
+        md.append(f"Configuration `{configuration}`:")
+        for f in findings:
+            if f.configuration == configuration:
+                verdict = {True: "holds", False: "DOES NOT HOLD", None: "not checked"}[f.holds]
+                md.append(f"- **{verdict}**: {f.claim}. ({f.evidence})")
+        md.append("")
+    return md
+
+
 def write_paper_tables(
     out: Path,
     rows: Sequence[PaperRow],
@@ -972,18 +1034,7 @@ def write_paper_tables(
     md += ["## Side by side: paper, sim (reference config), sim (our default)", ""]
     for title, (cols, trs) in side_by_side_tables(results, paper, entries).items():
         md += [f"### {title}", "", markdown_table(cols, trs)]
-    md += ["## Table IV: order of the nine ROFT rows (Kendall tau, paper vs sim)", ""]
-    for configuration in configurations:
-        if configuration not in results:
-            continue
-        md.append(f"Configuration `{configuration}`:")
-        for order in table4_order(results, paper, configuration=configuration):
-            tau = "n/a" if order.kendall_tau is None else f"{order.kendall_tau:+.3f}"
-            md.append(
-                f"- {order.metric}: tau {tau} over {order.rows} rows; paper best to worst "
-                f"{', '.join(order.paper_order)}; sim {', '.join(order.sim_order)}"
-            )
-        md.append("")
+    md += _table4_order_lines(results, paper, configurations)
     cols, trs = attribution_table(results)
     if trs:
         md += [
@@ -993,38 +1044,8 @@ def write_paper_tables(
         ]
         atomic_write_text(out / "attribution.csv", csv_table(cols, trs))
         tex.append(latex_table(cols, trs, caption="Deviations from the reference, one at a time"))
-    motions = _per_object_motions(results, paper)
-    if motions:
-        md += [
-            "## Per object: does the difference follow the motion? (paper / sim velocity errors)",
-            "",
-            "ROFT fed the masks as they arrive (w/o segm. sync.) reads its velocity from flow on "
-            "a mask 6-12 frames old, so its velocity error grows with how far the object moves "
-            "in that delay; a paper / sim ratio above 1 says the paper's sequence of that object "
-            "moved faster relative to its size than the simulated one. Rank correlation: "
-            "Spearman's, over the objects, between the ADD-AUC difference and the stale-mask e_v "
-            "ratio.",
-            "",
-        ]
-        for motion in motions:
-            rho = "n/a" if motion.rank_correlation is None else f"{motion.rank_correlation:+.2f}"
-            md += [
-                f"Configuration `{motion.configuration}` (rank correlation {rho}):",
-                "",
-                markdown_table(motion.columns, motion.rows),
-            ]
-            atomic_write_text(
-                out / f"per_object_motion_{motion.configuration}.csv",
-                csv_table(motion.columns, motion.rows),
-            )
-    md += ["## The paper's findings, checked", ""]
-    for configuration in configurations:
-        md.append(f"Configuration `{configuration}`:")
-        for f in findings:
-            if f.configuration == configuration:
-                verdict = {True: "holds", False: "DOES NOT HOLD", None: "not checked"}[f.holds]
-                md.append(f"- **{verdict}**: {f.claim}. ({f.evidence})")
-        md.append("")
+    md += _per_object_motion_section(out, _per_object_motions(results, paper))
+    md += _findings_lines(configurations, findings)
     md += [f"Paper numbers: {paper.source}."]
     path = out / "tables.md"
     atomic_write_text(path, "\n".join(md) + "\n")

@@ -23,6 +23,12 @@ to the folder it runs in (docs/formats.md, "The reference evaluation's tree"):
 ``full_mask_<mask set>_of_<flow set>_pose_<pose set>`` plus the reference's ablation suffix
 (``_no_outrej``, ``_no_posesync``, ``_no_flowaid``, ``_no_velocity``, ``_no_pose``) for a ROFT
 ablation, and ``_<tracker>`` for a tracker other than ROFT (:func:`reference_config_name`).
+The reference's ``evaluation/experiments.py`` reads fixed ``<config>`` folders
+(:data:`REFERENCE_EXPERIMENTS`); ``evaluate.py`` stops with ``FileNotFoundError`` on the first
+file it opens (``execution_times.txt``) of a folder its experiment names and the tree lacks, so a
+tree of another tracker, or of other inputs, is scored by ``exp_fastycb_roft`` when written with
+``<config>`` = :data:`REFERENCE_ROFT_CONFIG` (``--reference-config``); the CLI says so
+(:attr:`ReferenceTree.experiments`).
 
 Object frame: the ``*_ycb.txt`` files and ``points.xyz`` are in the object frame of our poses
 (for registry objects the NVDU-aligned frame, bounding-box centre at the origin), the same frame
@@ -71,6 +77,8 @@ __all__ = [
     "REFERENCE_MODELS_DIR",
     "REFERENCE_TOP_FOLDERS",
     "REFERENCE_RESULT_FILES",
+    "REFERENCE_ROFT_CONFIG",
+    "REFERENCE_EXPERIMENTS",
     "ReferenceTree",
     "reference_config_name",
     "check_reference_objects",
@@ -87,13 +95,39 @@ REFERENCE_MODELS_DIR = Path("YCB_Video_Models") / "models"
 REFERENCE_TOP_FOLDERS: tuple[str, ...] = ("results", "dataset", "YCB_Video_Models")
 """The folders the tree adds at its root."""
 REFERENCE_RESULT_FILES: tuple[str, ...] = (
+    "execution_times.txt",
     "pose_estimate_ycb.txt",
     "velocity_estimate.txt",
-    "execution_times.txt",
     "pose_measurements.txt",
     "velocity_measurements.txt",
 )
-"""Every file ``data_loader.load_ours`` opens in a result folder."""
+"""Every file ``data_loader.load_ours`` opens in a result folder, in its order.
+``execution_times.txt`` holds ``step_ms load_ms`` per frame, as the reference ROFT logs them; the
+reference's ``time`` metric is the mean of the first column plus 3 ms of NVOF 1.0 for an
+``nvof_1`` flow set."""
+
+REFERENCE_ROFT_CONFIG = "full_mask_mrcnn_ycbv_bop_pbr_of_nvof_1_slow_pose_dope"
+"""The ``<config>`` of the reference's ROFT row on Fast-YCB (its Tables I, II and IV)."""
+
+REFERENCE_EXPERIMENTS: dict[str, tuple[str, ...]] = {
+    "exp_fastycb_roft": (REFERENCE_ROFT_CONFIG,),
+    "exp_fastycb_velocities": (REFERENCE_ROFT_CONFIG, f"{REFERENCE_ROFT_CONFIG}_no_flowaid"),
+    "exp_fastycb_ablation": (
+        "full_mask_gt_of_nvof_1_slow_pose_gt",
+        "full_mask_mrcnn_ycbv_bop_pbr_of_nvof_1_slow_pose_gt",
+        "full_mask_gt_of_nvof_1_slow_pose_dope",
+        REFERENCE_ROFT_CONFIG,
+        f"{REFERENCE_ROFT_CONFIG}_no_posesync",
+        f"{REFERENCE_ROFT_CONFIG}_no_outrej",
+        f"{REFERENCE_ROFT_CONFIG}_no_flowaid",
+        f"{REFERENCE_ROFT_CONFIG}_no_velocity",
+        f"{REFERENCE_ROFT_CONFIG}_no_pose",
+    ),
+}
+"""The Fast-YCB experiments of the reference's ``evaluation/experiments.py`` that read ROFT
+result folders and the dataset only (``exp_fastycb`` also reads PoseRBPF's and se3-TrackNet's
+results): experiment -> every ``<config>`` folder it reads (the tree must hold them all; trees of
+several runs merge, one ``<config>`` folder each)."""
 
 _ROFT_SUFFIXES = {
     "no_outlier_rejection": "no_outrej",
@@ -120,6 +154,15 @@ class ReferenceTree:
     def missing_objects(self) -> tuple[str, ...]:
         """Fast-YCB objects the reference loads but this tree lacks (it fails on any of them)."""
         return tuple(o for o in REFERENCE_OBJECTS if o not in self.objects)
+
+    @property
+    def experiments(self) -> tuple[str, ...]:
+        """The reference experiments (:data:`REFERENCE_EXPERIMENTS`) that read this tree's
+        ``<config>``; none for another name (``evaluate.py`` would stop on the first file it
+        opens in the folder its experiment names: rerun with
+        ``--reference-config`` :data:`REFERENCE_ROFT_CONFIG` to be scored as its ROFT row)."""
+        reading = REFERENCE_EXPERIMENTS.items()
+        return tuple(e for e, configs in reading if self.config_name in configs)
 
     @property
     def results_dir(self) -> Path:

@@ -3,7 +3,8 @@
 :func:`run_sequences` runs every sequence, writes one folder per sequence
 (:mod:`roft_sim.harness.outputs`), ``metrics.json`` (``ALL``, ``MEAN`` and one entry per
 sequence) and ``run.json`` (resolved configuration, seeds, inputs, package versions), and returns
-a :class:`RunResult`. :func:`find_sequences` expands dataset roots into sequence paths.
+a :class:`RunResult`. :func:`~roft_sim.datasets.find_sequences` (re-exported here) expands dataset
+roots into sequence paths.
 """
 
 from __future__ import annotations
@@ -15,10 +16,10 @@ from pathlib import Path
 from typing import Any, Literal, get_args
 
 from roft_sim.config_files import jsonable
-from roft_sim.datasets import detect_format, list_sequences, open_sequence
+from roft_sim.datasets import detect_format, find_sequences, open_sequence
 from roft_sim.datasets.base import Sequence as DatasetSequence
 from roft_sim.datasets.metadata import package_versions
-from roft_sim.errors import ConfigError, DatasetFormatError
+from roft_sim.errors import ConfigError
 from roft_sim.harness.evaluation import SequenceEvaluation, evaluate_run
 from roft_sim.harness.inputs import DepthRendererFactory, resolve_object_model
 from roft_sim.harness.options import RunOptions
@@ -86,29 +87,6 @@ class RunResult:
     @property
     def sequence_names(self) -> list[str]:
         return [r.sequence_name for r in self.runs]
-
-
-def find_sequences(paths: Sequence[str | Path]) -> list[Path]:
-    """Sequence paths under ``paths``: each is a sequence (folder or ``.h5``) or a dataset root.
-
-    Raises:
-        DatasetFormatError: a path does not exist or holds no sequence.
-    """
-    found: list[Path] = []
-    for p in map(Path, paths):
-        if not p.exists():
-            raise DatasetFormatError(
-                f"dataset path {str(p)!r} does not exist; give a sequence folder, an .h5 file or "
-                "a dataset root (e.g. the folder `roft-sim generate --out` wrote)"
-            )
-        sequences = list_sequences(p)
-        if not sequences:
-            raise DatasetFormatError(
-                f"no sequence found under {str(p)!r}: expected Fast-YCB folders (cam_K.json + "
-                "data.txt), BOP scenes or .h5 files, up to 3 levels deep"
-            )
-        found.extend(sequences)
-    return found
 
 
 def open_sequences(paths: Sequence[str | Path]) -> list[SequenceSource]:
@@ -308,6 +286,7 @@ def run_sequences(
             "sequences": described,
             "layout": layout,
             "reference_config": None if tree is None else tree.config_name,
+            "reference_experiments": None if tree is None else list(tree.experiments),
             "versions": package_versions("mujoco", "scipy"),
             "wall_s": round(wall_s, 3),
         },

@@ -10,7 +10,9 @@ index with the ground truth:
 - Velocity RMSE [cm/s] and [deg/s] of the object-origin velocity ``v_obj`` and the angular
   velocity ``w``, camera frame. A spatial twist estimate ``(v_o, w)`` (ROFT's velocity KF) is
   converted with the GROUND-TRUTH position, ``v = v_o + w x t_gt``, as the reference does;
-  otherwise ``v_obj`` and ``w`` are compared directly. The angular error is the norm of the
+  otherwise ``v_obj`` and ``w`` are compared directly. A frame without a twist (ROFT's frame 0,
+  before its velocity filter has seen flow) is scored with its ``v_obj`` and ``w``: the row of
+  ``velocity_estimate.txt`` the reference scores for it. The angular error is the norm of the
   component-wise rad->deg difference.
 - "ALL" pools the frames of every sequence into one curve and one RMSE; "MEAN" averages the
   per-sequence numbers (the "Average" of other papers).
@@ -246,7 +248,8 @@ def _velocity_errors(
     (the held one under ``invalid="hold"``, else the same frame), the linear (F, 3) [cm/s] and
     angular (F, 3) [deg/s] velocity errors, estimate minus ground truth, camera frame; NaN rows
     where a frame is not scored or either side is missing. A spatial twist is scored at the
-    ground-truth origin ``t_gt`` (rows of ``Tg``, the ground truth of the kept frames)."""
+    ground-truth origin ``t_gt`` (rows of ``Tg``, the ground truth of the kept frames); where its
+    row is NaN (no twist), ``v_obj_est`` and ``w_est`` are scored when given."""
     f = index.size
     v_err = np.full((f, 3), np.nan)
     w_err = np.full((f, 3), np.nan)
@@ -257,6 +260,10 @@ def _velocity_errors(
     if twist is not None:
         w_hat = twist[from_k, 3:]
         v_hat = v_obj_from_v_o(twist[from_k, :3], w_hat, Tg[:, :3, 3])
+        if v_obj_est is not None and w_est is not None:
+            no_twist = ~np.isfinite(twist[from_k]).all(axis=1)
+            v_hat[no_twist] = v_obj_est[from_k][no_twist]
+            w_hat[no_twist] = w_est[from_k][no_twist]
     elif v_obj_est is not None and w_est is not None:
         v_hat, w_hat = v_obj_est[from_k], w_est[from_k]
     else:
@@ -293,11 +300,13 @@ def evaluate_sequence(
         model_points_m: (M, 3) model points in the object frame [m].
         v_obj_gt: (N, 3) ground-truth object-origin velocity, camera frame [m/s].
         w_gt: (N, 3) ground-truth angular velocity, camera frame [rad/s].
-        v_obj_est: (N, 3) estimated object-origin velocity [m/s] (used without a spatial twist).
-        w_est: (N, 3) estimated angular velocity [rad/s] (used without a spatial twist).
+        v_obj_est: (N, 3) estimated object-origin velocity [m/s] (used without a spatial twist,
+            and on the NaN rows of ``spatial_twist_est``).
+        w_est: (N, 3) estimated angular velocity [rad/s] (likewise).
         spatial_twist_est: (N, 6) estimated ``(v_o [m/s], w [rad/s])``, camera frame; when
             given it is scored instead of ``v_obj_est``/``w_est``, with ``v = v_o + w x t_gt``.
-            NaN rows are left out of the velocity RMSE.
+            A NaN row (a frame without a twist) is scored with ``v_obj_est``/``w_est`` when they
+            are given, else left out of the velocity RMSE.
         valid: (N,) bool, False where the tracker had no pose; None = all valid.
         invalid: what invalid frames do: ``"failure"``, ``"exclude"``, ``"as_given"`` or
             ``"hold"`` (module docstring).
@@ -417,8 +426,9 @@ def evaluate_estimates(
         ground_truth: the sequence's ground truth, same length.
         model_points_m: (M, 3) model points [m].
         velocity: which velocity to score: the spatial twist (ROFT's velocity KF, converted
-            with the ground-truth position), ``v_obj``/``w``, or ``"auto"`` (the spatial twist
-            when any estimate carries one; frames without one are left out of the velocity RMSE).
+            with the ground-truth position), ``v_obj``/``w``, or ``"auto"``: each frame's spatial
+            twist when it carries one, else its ``v_obj``/``w``, what ``velocity_estimate.txt``
+            holds for the frame and the reference evaluation scores (it scores every row).
         invalid: policy for ``valid=False`` estimates (module docstring).
         step_times_s: (N,) step times [s], optional.
         with_adds: also compute ADD-S.
@@ -453,8 +463,8 @@ def evaluate_estimates(
         model_points_m,
         v_obj_gt=ground_truth.v_obj_mps,
         w_gt=ground_truth.w_radps,
-        v_obj_est=None if use_twist else rows("v_obj_mps", 3),
-        w_est=None if use_twist else rows("w_radps", 3),
+        v_obj_est=rows("v_obj_mps", 3),
+        w_est=rows("w_radps", 3),
         spatial_twist_est=twist,
         valid=np.array([e.valid for e in estimates], dtype=bool),
         invalid=invalid,

@@ -17,10 +17,10 @@ from numpy.typing import ArrayLike, NDArray
 
 from roft_sim.geometry import CameraIntrinsics, as_transform, project_points
 from roft_sim.render.camera import mujoco_camera_params
+from roft_sim.render.mocap import set_mocap_pose
 from roft_sim.render.offscreen import OffscreenRenderer
-from roft_sim.scene.builder import BuiltScene, build_scene
+from roft_sim.render.scene_builder import BuiltScene, build_scene
 from roft_sim.scene.config import BackgroundConfig, RenderConfig, SceneConfig, TableConfig
-from roft_sim.scene.mocap import set_mocap_pose
 
 Bool = NDArray[np.bool_]
 F32 = NDArray[np.float32]

@@ -164,8 +164,8 @@ def require_gl_backend(environ: MutableMapping[str, str]) -> str:
 def prepare_mujoco_gl() -> None:
     """Chooses ``MUJOCO_GL`` for library users, before MuJoCo is imported.
 
-    Called where roft_sim imports MuJoCo (the ``roft_sim.render`` package and
-    ``roft_sim.scene.builder``), so that a script that never set ``MUJOCO_GL`` renders offscreen
+    Called where roft_sim imports MuJoCo (by the ``roft_sim.render`` package, before any of its
+    modules is imported), so that a script that never set ``MUJOCO_GL`` renders offscreen
     instead of failing on MuJoCo's default (GLFW, which needs a display). Does nothing when the
     variable is set or MuJoCo is already imported (its choice is then fixed). ``MUJOCO_GL`` is
     MuJoCo's own variable: the one environment variable roft_sim reads outside its CLI.

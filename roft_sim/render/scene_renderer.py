@@ -24,14 +24,14 @@ from roft_sim.geometry import (
     relative_motion,
     v_o_from_v_obj,
 )
+from roft_sim.render.articulated_hand import FingerMotion, HandGrasp, synthesise_grasp
 from roft_sim.render.ground_truth import RenderedFrame
 from roft_sim.render.image_formation import apply_image_formation, rolling_shutter_band_times
+from roft_sim.render.mocap import set_mocap_pose
 from roft_sim.render.offscreen import OffscreenRenderer
-from roft_sim.scene.articulated_hand import FingerMotion, HandGrasp, synthesise_grasp
-from roft_sim.scene.builder import BuiltScene, DistractorMesh, build_scene
+from roft_sim.render.scene_builder import BuiltScene, DistractorMesh, build_scene
 from roft_sim.scene.camera_motion import camera_poses
 from roft_sim.scene.config import DistractorConfig
-from roft_sim.scene.mocap import set_mocap_pose
 from roft_sim.sensors.depth_noise import apply_depth_noise
 
 if TYPE_CHECKING:

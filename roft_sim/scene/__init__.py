@@ -1,10 +1,9 @@
-"""The MuJoCo scene: configuration, procedural textures, the hand (rigid proxy,
-:mod:`roft_sim.scene.hand`, or articulated with a synthesised grasp,
-:mod:`roft_sim.scene.articulated_hand`), camera ego-motion (sway or captured), distractor objects,
-and the ``MjSpec`` builder (:mod:`roft_sim.scene.builder`; it and the articulated hand import
-MuJoCo: select the GL backend before importing them).
-
-Importing this package imports only the configuration dataclasses (no MuJoCo).
+"""What is in the scene, described without MuJoCo: the configuration dataclasses, procedural
+textures, the rigid hand proxy (:mod:`roft_sim.scene.hand`) and camera ego-motion (sway or
+captured). Building the ``MjSpec`` model from them, the articulated hand with its synthesised
+grasp and posing mocap bodies belong to :mod:`roft_sim.render` (``scene_builder``,
+``articulated_hand``, ``mocap``), the one package that imports MuJoCo. Importing this package
+imports only the configuration dataclasses.
 """
 
 from roft_sim.scene.config import (

@@ -36,7 +36,7 @@ from numpy.typing import NDArray
 from roft_sim.datasets.base import Sequence
 from roft_sim.errors import ConfigError
 from roft_sim.records import FlowField
-from roft_sim.sensors.flow_sources import NVOF_GRID_PX, _check_frames
+from roft_sim.sensors.flow_source_base import NVOF_GRID_PX, check_frame_pair
 
 F32 = NDArray[np.float32]
 F64 = NDArray[np.float64]
@@ -320,7 +320,7 @@ class BlockMatchingFlowSource:
         return "bm" if window == BlockMatchingConfig().window_px else f"bm:{window}"
 
     def flow(self, sequence: Sequence, from_k: int, to_k: int) -> FlowField:
-        _check_frames(sequence, from_k, to_k)
+        check_frame_pair(sequence, from_k, to_k)
         grey = [
             cv2.cvtColor(np.ascontiguousarray(sequence.rgb(k)), cv2.COLOR_RGB2GRAY)
             for k in (from_k, to_k)

@@ -223,8 +223,7 @@ def main(argv: list[str] | None = None) -> None:  # pragma: no cover - a report 
     """Prints the breakdown of every sequence under a dataset folder."""
     import sys
 
-    from roft_sim.datasets import open_sequence
-    from roft_sim.harness.run_dataset import find_sequences
+    from roft_sim.datasets import find_sequences, open_sequence
 
     args = sys.argv[1:] if argv is None else argv
     estimate_set = args[1] if len(args) > 1 else "nvof_1_slow"

@@ -47,13 +47,13 @@ from numpy.typing import NDArray
 from roft_sim.datasets.base import GT_FLOW_SET, Sequence
 from roft_sim.errors import ConfigError
 from roft_sim.records import FlowField
-from roft_sim.sensors.flow_sources import (
+from roft_sim.sensors.flow_source_base import (
     NVOF_GRID_PX,
     NVOF_PRECISION_PX,
     FlowSource,
     GroundTruthFlowSource,
     StoredFlowSource,
-    _finite_at_least,
+    check_finite_at_least,
     check_s10_5_precision,
     flow_px_from_s10_5,
     frame_rng,
@@ -97,7 +97,7 @@ class NvofErrorModelConfig:
             "failure_rate_per_16px",
             "failure_min_radius_px",
         ):
-            _finite_at_least("NvofErrorModelConfig", name, getattr(self, name), 0.0)
+            check_finite_at_least("NvofErrorModelConfig", name, getattr(self, name), 0.0)
         if self.static_speed_px <= 0:
             raise ConfigError(
                 f"NvofErrorModelConfig.static_speed_px must be > 0, got {self.static_speed_px}"

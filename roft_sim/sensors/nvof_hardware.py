@@ -33,7 +33,7 @@ from numpy.typing import NDArray
 from roft_sim.datasets.base import Sequence
 from roft_sim.errors import ConfigError
 from roft_sim.records import FlowField
-from roft_sim.sensors.flow_sources import _check_frames, flow_px_from_s10_5
+from roft_sim.sensors.flow_source_base import check_frame_pair, flow_px_from_s10_5
 
 __all__ = [
     "NVOF_LIBRARY",
@@ -519,7 +519,7 @@ class NvofHardwareFlowSource:
         return self._session
 
     def flow(self, sequence: Sequence, from_k: int, to_k: int) -> FlowField:
-        _check_frames(sequence, from_k, to_k)
+        check_frame_pair(sequence, from_k, to_k)
         h, w = sequence.intrinsics.shape
         session = self._session_for(w, h)
         flow = session.flow_px(

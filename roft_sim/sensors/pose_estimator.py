@@ -366,7 +366,7 @@ FAST_YCB_DOPE_BASE: dict[str, PoseEstimatorConfig] = {
         start_miss_probability=HO3D_START_MISS_PROBABILITY, jump_min_m=0.5, jump_max_m=3.0
     ),
 }
-"""The per-object starting points of the Table I fit (:mod:`roft_sim.sensors.dope_calibration`):
+"""The per-object starting points of the Table I fit (:mod:`roft_sim.harness.dope_calibration`):
 the pooled "DOPE (ideal)" calibration plus the stated assumptions."""
 
 FAST_YCB_DOPE: dict[str, PoseEstimatorConfig] = {
@@ -428,7 +428,7 @@ FAST_YCB_DOPE: dict[str, PoseEstimatorConfig] = {
 """Per Fast-YCB object, the estimator fitted so that the reference's held 5 fps "DOPE" baseline
 reproduces the paper's Table I DOPE column (ADD-AUC, RMSE e_t, RMSE e_a) on the ``fast-ycb``
 preset's motion, trajectory seeds 0-9, real-mesh model points
-(:func:`roft_sim.sensors.dope_calibration.main`; the numbers reached: docs/sensors.md). Fitted:
+(:func:`roft_sim.harness.dope_calibration.main`; the numbers reached: docs/sensors.md). Fitted:
 a common scale of the core errors, the jump and the flip fractions; the rest is
 :data:`FAST_YCB_DOPE_BASE`. Used by the generator for these objects
 (:meth:`roft_sim.sensors.networks.PoseSetConfig.estimator_for`)."""

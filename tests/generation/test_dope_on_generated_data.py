@@ -49,7 +49,7 @@ def _generate_preset(out):
             flow_sets=(),
             mask=dataclasses.replace(s.networks.mask, enabled=False),
             # the pooled "DOPE (ideal)" defaults, not the per-object Table I fit
-            # (tests/sensors/test_dope_calibration.py checks that one)
+            # (tests/harness/test_dope_calibration.py checks that one)
             pose=dataclasses.replace(s.networks.pose, calibration="none"),
         )
         scenarios.append(dataclasses.replace(s, networks=networks))

@@ -22,8 +22,11 @@ from roft_sim.cli import main
 from roft_sim.datasets import write_sequence
 from roft_sim.datasets.base import DetectorPoses
 from roft_sim.harness.reference_layout import (
+    REFERENCE_EXPERIMENTS,
     REFERENCE_OBJECTS,
     REFERENCE_RESULT_FILES,
+    REFERENCE_ROFT_CONFIG,
+    ReferenceTree,
     reference_config_name,
 )
 from roft_sim.trackers.roft import ablation_config
@@ -102,8 +105,10 @@ def _rmse(x: np.ndarray) -> float:
 
 
 # ------------------------------------------------------------------------------------ fixtures
-def _object_sequence(obj: str, seed: int, valid: np.ndarray | None = None):
-    seq = box_sequence(n_frames=N_FRAMES, name=obj, seed=seed)
+def _object_sequence(
+    obj: str, seed: int, valid: np.ndarray | None = None, *, n_frames: int = N_FRAMES
+):
+    seq = box_sequence(n_frames=n_frames, name=obj, seed=seed)
     if valid is not None:
         poses = seq.detector_pose_sets["dope"]
         T = poses.T_cam_obj.copy()
@@ -187,13 +192,13 @@ def test_the_tree_holds_every_file_the_reference_opens(reference_run):
     assert run["layout"] == "reference" and run["reference_config"] == CONFIG
 
 
-def test_the_reference_numbers_equal_ours(reference_run):
-    """evaluate.py for 'ours': every row scored, v = v_o + w x t_gt, ALL pools every frame."""
-    _, out = reference_run
+def _assert_reference_numbers(out: Path, config: str, objects: tuple[str, ...], n: int) -> None:
+    """evaluate.py for 'ours' on the tree: every row scored (velocity rows included, frame 0
+    too), v = v_o + w x t_gt, ALL pools every frame; equal to our metrics.json."""
     metrics = json.loads((out / "metrics.json").read_text())
     pooled: dict[str, list[np.ndarray]] = {"add": [], "t": [], "a": [], "v": [], "w": []}
-    for obj in REFERENCE_OBJECTS:
-        results = out / "results" / "ROFT_results" / "fastycb" / CONFIG / obj
+    for obj in objects:
+        results = out / "results" / "ROFT_results" / "fastycb" / config / obj
         gt = _load_generic(out / "dataset" / "fast-ycb" / obj / "gt" / "poses_ycb.txt")
         gt_vel = _load_generic(out / "dataset" / "fast-ycb" / obj / "gt" / "velocities.txt")
         pose = _load_generic(results / "pose_estimate_ycb.txt")[:, 6:]
@@ -205,8 +210,9 @@ def test_the_reference_numbers_equal_ours(reference_run):
         errors["v"] = np.linalg.norm((gt_vel[:, :3] - vel[:, :3]) * 100.0, axis=1)
         errors["w"] = np.linalg.norm((gt_vel[:, 3:] - vel[:, 3:]) * 180.0 / np.pi, axis=1)
         ours = metrics[obj]
-        assert ours["frames"] == N_FRAMES and ours["frames_invalid"] == 0
-        assert _vocap(errors["add"]) == pytest.approx(ours["add_auc_pct"], rel=1e-7)  # float32
+        assert ours["frames"] == n and ours["frames_invalid"] == 0
+        assert ours["frames_velocity"] == n  # the reference scores every velocity row
+        assert _vocap(errors["add"]) == pytest.approx(ours["add_auc_pct"], rel=1e-12)
         assert _rmse(errors["t"]) == pytest.approx(ours["rmse_t_cm"], rel=1e-9)
         assert _rmse(errors["a"]) == pytest.approx(ours["rmse_a_deg"], rel=1e-7)
         assert _rmse(errors["v"]) == pytest.approx(ours["rmse_v_cmps"], rel=1e-9)
@@ -214,10 +220,75 @@ def test_the_reference_numbers_equal_ours(reference_run):
         for key in pooled:
             pooled[key].append(errors[key])
     every = {key: np.concatenate(values) for key, values in pooled.items()}
-    assert _vocap(every["add"]) == pytest.approx(metrics["ALL"]["add_auc_pct"], rel=1e-7)
+    assert _vocap(every["add"]) == pytest.approx(metrics["ALL"]["add_auc_pct"], rel=1e-12)
     assert _rmse(every["t"]) == pytest.approx(metrics["ALL"]["rmse_t_cm"], rel=1e-9)
     assert _rmse(every["v"]) == pytest.approx(metrics["ALL"]["rmse_v_cmps"], rel=1e-9)
+    assert _rmse(every["w"]) == pytest.approx(metrics["ALL"]["rmse_w_dps"], rel=1e-9)
     assert 0.0 < metrics["ALL"]["add_auc_pct"] < 100.0  # the numbers compared are not trivial
+
+
+def test_the_reference_numbers_equal_ours(reference_run):
+    _, out = reference_run
+    _assert_reference_numbers(out, CONFIG, REFERENCE_OBJECTS, N_FRAMES)
+
+
+ROFT_OBJECTS = REFERENCE_OBJECTS[:2]
+ROFT_FRAMES = 15
+
+
+@pytest.fixture(scope="module")
+def roft_reference_run(tmp_path_factory):
+    data = tmp_path_factory.mktemp("roft_data")
+    for i, obj in enumerate(ROFT_OBJECTS):
+        write_sequence(_object_sequence(obj, seed=40 + i, n_frames=ROFT_FRAMES), "fast-ycb", data)
+    out = tmp_path_factory.mktemp("roft_run") / "out"
+    args = ["run", str(data), "--tracker", "roft", "--flow", "gt", "--masks", "mrcnn"]
+    args += ["--layout", "reference", "--reference-config", REFERENCE_ROFT_CONFIG]
+    assert main([*args, "--out", str(out), "--no-progress"]) == 0
+    return out
+
+
+def test_roft_reference_numbers_equal_ours_velocity_rows_included(roft_reference_run, capsys):
+    """ROFT has no spatial twist on frame 0 (its velocity filter has seen no flow yet): the tree's
+    row there holds its zero velocity, which the reference scores against a moving object's
+    ground truth, and so do we."""
+    out = roft_reference_run
+    for obj in ROFT_OBJECTS:
+        estimates = np.load(out / obj / "estimates.npz")
+        assert not estimates["has_spatial_twist"][0] and estimates["has_spatial_twist"][1:].all()
+        gt_vel = _load_generic(out / "dataset" / "fast-ycb" / obj / "gt" / "velocities.txt")
+        assert np.linalg.norm(gt_vel[0, :3]) > 0.05  # frame 0's row weighs in
+    _assert_reference_numbers(out, REFERENCE_ROFT_CONFIG, ROFT_OBJECTS, ROFT_FRAMES)
+    run = json.loads((out / "run.json").read_text())
+    assert run["reference_experiments"] == [
+        "exp_fastycb_roft",
+        "exp_fastycb_velocities",
+        "exp_fastycb_ablation",
+    ]
+
+
+def test_the_run_says_which_reference_experiment_reads_its_tree(reference_run, capsys):
+    """evaluate.py opens execution_times.txt first in the folder its experiment names, so a tree
+    whose <config> no experiment reads (detector-hold's own name) fails there with
+    FileNotFoundError: the run says so and how to be scored as the reference's ROFT row."""
+    from roft_sim.cli.run import _print_reference_note
+
+    _, out = reference_run
+    assert REFERENCE_RESULT_FILES[0] == "execution_times.txt"
+    run = json.loads((out / "run.json").read_text())
+    assert run["reference_experiments"] == []
+    tree = ReferenceTree(root=out, config_name=CONFIG, objects=REFERENCE_OBJECTS)
+    _print_reference_note(tree)
+    err = capsys.readouterr().err
+    assert "no experiment" in err and f"--reference-config {REFERENCE_ROFT_CONFIG}" in err
+    gt_inputs = REFERENCE_EXPERIMENTS["exp_fastycb_ablation"][0]
+    ablation = dataclasses.replace(tree, config_name=gt_inputs)
+    assert ablation.experiments == ("exp_fastycb_ablation",)
+    _print_reference_note(ablation)
+    err = capsys.readouterr().err
+    assert "exp_fastycb_ablation" in err and f"{REFERENCE_ROFT_CONFIG}_no_pose" in err
+    _print_reference_note(dataclasses.replace(tree, config_name=REFERENCE_ROFT_CONFIG))
+    assert "--experiment-name exp_fastycb_roft" in capsys.readouterr().err
 
 
 def _reference_dope_row(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -257,7 +328,7 @@ def test_detector_hold_under_hold_is_the_reference_dope_row(tmp_path):
     points = _load_generic(out / "YCB_Video_Models" / "models" / obj / "points.xyz")
     errors = _reference_errors(gt, dope, points)
     assert ours["frames"] == len(indexes) and ours["frames_invalid"] == 12
-    assert _vocap(errors["add"]) == pytest.approx(ours["add_auc_pct"], rel=1e-7)  # float32
+    assert _vocap(errors["add"]) == pytest.approx(ours["add_auc_pct"], rel=1e-12)
     assert _rmse(errors["t"]) == pytest.approx(ours["rmse_t_cm"], rel=1e-9)
     assert _rmse(errors["a"]) == pytest.approx(ours["rmse_a_deg"], rel=1e-7)
     # the tracker's rows in the tree start with its first pose, back-filled (no zero rows)

@@ -1,4 +1,8 @@
-"""ADD-AUC: hand-computed VOCap cases and two independent implementations on random data."""
+"""ADD-AUC: hand-computed VOCap cases and two independent implementations on random data.
+
+The accuracies ``i / N`` are float32, as the ROFT reference's evaluation computes them, so a
+number differs from its exact (float64) value by up to ~1e-5 percentage points: the hand cases
+allow that, the literal transcription rounds the same way and matches to 1e-9."""
 
 from __future__ import annotations
 
@@ -14,11 +18,12 @@ from roft_sim.metrics import accuracy_curve, add_auc
 
 def vocap_matlab_literal(distances: list[float]) -> float:
     """A literal, loop-by-loop transcription of YCB_Video_toolbox ``VOCap`` (1-based indices)
-    and its caller: ``D(D > 0.1) = inf; d = sort(D); accuracy = cumsum(ones(1, n)) / n``."""
+    and its caller: ``D(D > 0.1) = inf; d = sort(D); accuracy = cumsum(ones(1, n)) / n``, the
+    accuracies rounded to float32 as hsp-iit/roft's Python port computes them."""
     D = [math.inf if (x > 0.1 or math.isnan(x)) else x for x in distances]
     d = sorted(D)
     n = len(d)
-    accuracy = [(i + 1) / n for i in range(n)]
+    accuracy = [float(np.float32(i + 1) / np.float32(n)) for i in range(n)]
     rec = [d[i] for i in range(n) if math.isfinite(d[i])]
     prec = [accuracy[i] for i in range(n) if math.isfinite(d[i])]
     if not rec:
@@ -63,13 +68,13 @@ def exact_integral(distances: list[float]) -> float:
 def test_hand_computed_three_frames():
     # N = 3; 0.2 m > 0.1 m is a failure. mrec = [0, .02, .05, .1], mpre = [0, 1/3, 2/3, 2/3]:
     # 0.02 * 1/3 + 0.03 * 2/3 + 0.05 * 2/3 = 0.06 -> x10 -> 0.6 -> 60 %.
-    assert add_auc([0.02, 0.05, 0.2]) == pytest.approx(60.0, abs=1e-12)
+    assert add_auc([0.02, 0.05, 0.2]) == pytest.approx(60.0, abs=1e-5)  # float32 1/3, 2/3
 
 
 def test_hand_computed_tie_takes_accuracy_of_first_tied_entry():
     # mrec = [0, .05, .05, .1], mpre = [0, .5, 1, 1]; index 3 (tie) is skipped:
     # 0.05 * 0.5 + 0.05 * 1 = 0.075 -> 75 % (the exact integral would be 50 %).
-    assert add_auc([0.05, 0.05]) == pytest.approx(75.0, abs=1e-12)
+    assert add_auc([0.05, 0.05]) == pytest.approx(75.0, abs=1e-12)  # 1/2 and 1: exact
     assert exact_integral([0.05, 0.05]) == pytest.approx(50.0)
 
 
@@ -107,7 +112,7 @@ _values = st.one_of(
 def test_matches_literal_matlab_transcription_and_closed_form(distances):
     ours = add_auc(distances)
     assert ours == pytest.approx(vocap_matlab_literal(distances), abs=1e-9)
-    assert ours == pytest.approx(vocap_closed_form(distances), abs=1e-9)
+    assert ours == pytest.approx(vocap_closed_form(distances), abs=1e-5)  # float64 accuracies
 
 
 @given(st.lists(st.floats(0.0, 0.15, allow_nan=False), min_size=1, max_size=60))
@@ -117,7 +122,7 @@ def test_upward_bias_over_exact_integral_is_bounded(distances):
     d = np.array(distances)
     finite = d[d <= 0.1]
     bound = (finite.max() if finite.size else 0.0) / (0.1 * d.size) * 100
-    assert -1e-9 <= ours - exact <= bound + 1e-9
+    assert -1e-5 <= ours - exact <= bound + 1e-5  # float32 accuracies
 
 
 def test_accuracy_curve_counts_failures_in_n():

@@ -98,6 +98,45 @@ def test_velocity_errors_in_cm_per_s_and_deg_per_s():
     assert m_twist.rmse_w_dps == pytest.approx(3.0)
 
 
+def test_a_frame_without_a_twist_is_scored_with_its_own_velocity():
+    """The reference scores every row of velocity_estimate.txt: a frame whose estimate carries no
+    spatial twist (ROFT's frame 0, before its velocity filter has seen flow) holds the estimate's
+    v_obj - w x t_gt there, which it turns back into v_obj; here v_obj = w = 0, so that frame's
+    error is the ground truth's whole velocity (recomputed by hand below)."""
+    gt = _gt(4, seed=7)
+    twists = np.concatenate([gt.v_o_mps + 0.002, gt.w_radps - 0.01], 1)
+    ests = [
+        Estimate(
+            k=k,
+            T_cam_obj=gt.T_cam_obj[k],
+            v_obj_mps=np.zeros(3),
+            w_radps=np.zeros(3),
+            spatial_twist=None if k == 0 else twists[k],
+        )
+        for k in range(4)
+    ]
+    m = evaluate_estimates(ests, gt, PTS, velocity="auto")
+    assert m.frames_velocity == 4
+    v = np.zeros((4, 3))
+    w = np.zeros((4, 3))
+    for k in range(1, 4):
+        w[k] = twists[k, 3:]
+        v[k] = twists[k, :3] + np.cross(w[k], gt.T_cam_obj[k, :3, 3])
+    e_v = np.linalg.norm((gt.v_obj_mps - v) * 100.0, axis=1)
+    e_w = np.linalg.norm((gt.w_radps - w) * 180.0 / np.pi, axis=1)
+    assert e_v[0] > 10 * e_v[1:].max()  # frame 0 weighs in
+    assert m.rmse_v_cmps == pytest.approx(np.sqrt(np.mean(e_v**2)), rel=1e-12)
+    assert m.rmse_w_dps == pytest.approx(np.sqrt(np.mean(e_w**2)), rel=1e-12)
+    # evaluate_sequence leaves a NaN twist row out when no v_obj / w is given
+    twist_rows = np.vstack([np.full(6, np.nan), twists[1:]])
+    bare = evaluate_sequence(
+        gt.T_cam_obj, gt.T_cam_obj, PTS, v_obj_gt=gt.v_obj_mps, w_gt=gt.w_radps,
+        spatial_twist_est=twist_rows,
+    )  # fmt: skip
+    assert bare.frames_velocity == 3
+    assert bare.rmse_v_cmps == pytest.approx(np.sqrt(np.mean(e_v[1:] ** 2)), rel=1e-12)
+
+
 def test_velocity_without_ground_truth_is_an_error():
     gt = _gt(3)
     with pytest.raises(ValueError, match="without v_obj_gt"):

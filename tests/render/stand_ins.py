@@ -132,7 +132,7 @@ def render_posed(intrinsics, mesh, T_cam_obj, *, scene=None, render=None, segmen
 
     from roft_sim.geometry import quat_from_matrix
     from roft_sim.render.offscreen import OffscreenRenderer
-    from roft_sim.scene.builder import build_scene
+    from roft_sim.render.scene_builder import build_scene
     from roft_sim.scene.config import RenderConfig, SceneConfig
 
     built = build_scene(

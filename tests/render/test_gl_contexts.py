@@ -13,7 +13,7 @@ from stand_ins import SMALL_CAMERA, SinusoidalTrajectory, grid_box_mesh
 from roft_sim.geometry import quat_from_matrix
 from roft_sim.render.gl_contexts import free_idle_gl_contexts
 from roft_sim.render.offscreen import OffscreenRenderer
-from roft_sim.scene.builder import BuiltScene, build_scene
+from roft_sim.render.scene_builder import BuiltScene, build_scene
 from roft_sim.scene.config import HandConfig, RenderConfig, SceneConfig
 
 pytestmark = pytest.mark.render

@@ -10,7 +10,7 @@ from stand_ins import SMALL_CAMERA, SinusoidalTrajectory, grid_box_mesh
 from roft_sim.errors import ConfigError
 from roft_sim.geometry import quat_from_matrix
 from roft_sim.render.offscreen import OffscreenRenderer
-from roft_sim.scene.builder import build_scene
+from roft_sim.render.scene_builder import build_scene
 from roft_sim.scene.config import HandConfig, RenderConfig, SceneConfig
 
 pytestmark = pytest.mark.render

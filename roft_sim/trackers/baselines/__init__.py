@@ -10,11 +10,9 @@
 
 from roft_sim.trackers.base import TrackerSpec
 from roft_sim.trackers.baselines.detector_hold import DetectorHoldConfig, DetectorHoldTracker
-from roft_sim.trackers.baselines.pose_only_ukf import (
-    PoseOnlyUkfConfig,
-    create_naive_delay,
-    create_pose_only_ukf,
-)
+from roft_sim.trackers.baselines.naive_delay import create_naive_delay
+from roft_sim.trackers.baselines.pose_only import PoseOnlyUkfConfig
+from roft_sim.trackers.baselines.pose_only_ukf import create_pose_only_ukf
 
 __all__ = [
     "DETECTOR_HOLD_SPEC",

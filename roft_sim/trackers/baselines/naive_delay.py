@@ -19,8 +19,8 @@ from numpy.typing import NDArray
 
 from roft_sim.geometry.so3 import quat_from_matrix
 from roft_sim.records import Estimate, Observation
-from roft_sim.trackers.base import TrackerContext
-from roft_sim.trackers.baselines.pose_only_ukf import PoseOnlyUkfConfig
+from roft_sim.trackers.base import Tracker, TrackerContext
+from roft_sim.trackers.baselines.pose_only import PoseOnlyUkfConfig
 from roft_sim.trackers.roft.pose_ukf import (
     PoseBelief,
     PoseUKF,
@@ -29,7 +29,7 @@ from roft_sim.trackers.roft.pose_ukf import (
     gate_rejects,
 )
 
-__all__ = ["NaiveDelayTracker"]
+__all__ = ["NaiveDelayTracker", "create_naive_delay"]
 
 F64 = NDArray[np.float64]
 
@@ -111,3 +111,9 @@ class NaiveDelayTracker:
             dropped_pose_ids=tuple(dropped),
             diagnostics=diagnostics,
         )
+
+
+def create_naive_delay(config: PoseOnlyUkfConfig, context: TrackerContext) -> Tracker:
+    """The pose-only UKF that fuses every delayed pose at its arrival frame (its own class,
+    :class:`NaiveDelayTracker`)."""
+    return NaiveDelayTracker(config, context)

@@ -10,7 +10,7 @@ The scene (world frame = OpenCV optical frame of the camera at rest, see
 - ``object``: a mocap body with the textured object mesh (per-vertex texture coordinates and a
   texture image passed from memory);
 - ``hand`` (optional): the proxy, a mocap body with capsules in the object frame, or the
-  articulated hand (:mod:`roft_sim.scene.articulated_hand`), a mocap body with the palm and a
+  articulated hand (:mod:`roft_sim.render.articulated_hand`), a mocap body with the palm and a
   chain of three jointed segments per digit;
 - ``distractor0`` ... (optional): mocap bodies with further object meshes;
 - the table top and the background wall: textured quads fixed in the world;
@@ -26,9 +26,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Protocol
 
-import roft_sim.render  # noqa: F401  (chooses MUJOCO_GL before MuJoCo is imported)
-
-# isort: split
 import mujoco
 import numpy as np
 from numpy.typing import NDArray
@@ -37,8 +34,8 @@ import roft_sim.scene.textures
 from roft_sim.assets.texture_cache import cached_texture
 from roft_sim.errors import ConfigError
 from roft_sim.geometry import CameraIntrinsics
+from roft_sim.render.articulated_hand import HandModel, add_articulated_hand
 from roft_sim.render.camera import QUAT_CV_MJ, mujoco_camera_params
-from roft_sim.scene.articulated_hand import HandModel, add_articulated_hand
 from roft_sim.scene.config import HandConfig, RenderConfig, SceneConfig
 from roft_sim.scene.hand import hand_capsules
 from roft_sim.scene.textures import procedural_texture

@@ -9,7 +9,7 @@ import trimesh
 from roft_sim.errors import ConfigError
 from roft_sim.geometry import CameraIntrinsics
 from roft_sim.render.camera import intrinsics_from_mujoco_camera
-from roft_sim.scene.builder import HAND_BODY, OBJECT_BODY, STATIC_BODY, build_scene
+from roft_sim.render.scene_builder import HAND_BODY, OBJECT_BODY, STATIC_BODY, build_scene
 from roft_sim.scene.config import (
     BackgroundConfig,
     HandConfig,

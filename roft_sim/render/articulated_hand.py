@@ -32,16 +32,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import roft_sim.render  # noqa: F401  (chooses MUJOCO_GL before MuJoCo is imported)
-
-# isort: split
 import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
 from roft_sim.geometry import matrix_from_rotvec, quat_from_matrix
+from roft_sim.render.mocap import set_mocap_pose
 from roft_sim.scene.config import FingerConfig, HandConfig, HandMotionConfig
-from roft_sim.scene.mocap import set_mocap_pose
 
 F64 = NDArray[np.float64]
 

@@ -8,9 +8,9 @@ last valid one. :func:`held_detection_estimates` is that policy; :func:`score_do
 per-object configuration on many ground-truth tracks of the motion a scenario uses
 (:func:`scenario_motion_tracks`: the scenario's own trajectory with other seeds, or captured
 motion), and :func:`fit_object` fits three numbers of one object's configuration to the
-paper's three numbers. ``python -m roft_sim.sensors.dope_calibration [YCB_DIR
+paper's three numbers. ``python -m roft_sim.harness.dope_calibration [YCB_DIR
 [TRAJECTORIES_DIR]] [--report-only]`` reruns the fit (about 15 minutes on 2 busy cores) and
-prints the tables of docs/sensors.md; ``python -m roft_sim.sensors.dope_calibration [YCB_DIR]
+prints the tables of docs/sensors.md; ``python -m roft_sim.harness.dope_calibration [YCB_DIR]
 --fit-motion`` reruns the motion fit below (a few minutes).
 
 The same scoring calibrates the ``fast-ycb`` preset's motion (:func:`fit_motion_speed_fraction`,

@@ -6,7 +6,7 @@ import mujoco
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from roft_sim.scene.mocap import set_mocap_pose
+from roft_sim.render.mocap import set_mocap_pose
 
 _XML = """<mujoco><worldbody>
 <body name="a" mocap="true"><geom size="0.1"/></body>

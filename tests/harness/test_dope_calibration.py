@@ -9,8 +9,8 @@ import pytest
 
 from roft_sim.datasets.base import DetectorPoses
 from roft_sim.errors import ConfigError
+from roft_sim.harness.dope_calibration import held_detection_estimates
 from roft_sim.records import PoseTrack
-from roft_sim.sensors.dope_calibration import held_detection_estimates
 from roft_sim.sensors.pose_estimator import PoseEstimatorConfig, sample_pose_detections
 
 
@@ -124,8 +124,8 @@ def test_held_dope_reproduces_table1_per_object_on_the_report_seeds(shared_ycb_d
     100-109 (the EVALUATION split) with the real meshes' model points."""
     from roft_sim.assets import load_object
     from roft_sim.generation import preset_scenario_paths
+    from roft_sim.harness.dope_calibration import REPORT_SEEDS, scenario_motion_tracks, score_dope
     from roft_sim.report.paper_reference import paper_tables
-    from roft_sim.sensors.dope_calibration import REPORT_SEEDS, scenario_motion_tracks, score_dope
     from roft_sim.sensors.pose_estimator import FAST_YCB_DOPE
 
     paths = {p.stem: p for p in preset_scenario_paths("fast-ycb")}
@@ -155,7 +155,7 @@ def test_faster_bursts_lose_more_from_ideal_to_held():
     """The held-minus-ideal loss of the same pooled estimator is set by the motion: bursts that
     all peak near the stated peaks lose more than the generator's default spread of bursts."""
     from roft_sim.assets import load_object
-    from roft_sim.sensors.dope_calibration import motion_held_loss
+    from roft_sim.harness.dope_calibration import motion_held_loss
 
     paths = _preset_paths("003_cracker_box", "005_tomato_soup_can")
     points = {n: load_object(n, prefer="procedural").model.model_points_m[:256] for n in paths}
@@ -169,7 +169,7 @@ def test_faster_bursts_lose_more_from_ideal_to_held():
 
 
 def test_motion_fit_finds_the_fraction_of_a_known_loss():
-    from roft_sim.sensors.dope_calibration import fit_motion_speed_fraction
+    from roft_sim.harness.dope_calibration import fit_motion_speed_fraction
 
     calls: list[float] = []
 
@@ -185,7 +185,7 @@ def test_motion_fit_keeps_the_evaluated_fraction_nearest_the_target():
     """A noisy loss sends the bisection astray: the target is met at 0.8 (the second midpoint),
     but 0.7's loss (-23 less a 3-point dip) falls below it, so the bisection ends near 0.7;
     0.8 is returned."""
-    from roft_sim.sensors.dope_calibration import fit_motion_speed_fraction
+    from roft_sim.harness.dope_calibration import fit_motion_speed_fraction
 
     def loss(fraction: float) -> float:
         return -9.0 - 20.0 * fraction - (3.0 if abs(fraction - 0.7) < 1e-9 else 0.0)
@@ -195,7 +195,7 @@ def test_motion_fit_keeps_the_evaluated_fraction_nearest_the_target():
 
 
 def test_motion_fit_refuses_an_unreachable_loss_and_bad_bounds():
-    from roft_sim.sensors.dope_calibration import fit_motion_speed_fraction
+    from roft_sim.harness.dope_calibration import fit_motion_speed_fraction
 
     with pytest.raises(ConfigError, match=r"-40.00 points is not reached.*-15.00 \.\. -29.00"):
         fit_motion_speed_fraction(lambda f: -9.0 - 20.0 * f, -40.0)
@@ -205,7 +205,7 @@ def test_motion_fit_refuses_an_unreachable_loss_and_bad_bounds():
 
 def test_speed_fraction_override_needs_synthetic_motion(tmp_path):
     """The preset with its continuous profile instead of the bursty one."""
-    from roft_sim.sensors.dope_calibration import scenario_motion_tracks
+    from roft_sim.harness.dope_calibration import scenario_motion_tracks
 
     (preset,) = _preset_paths("003_cracker_box").values()
     text = preset.read_text()
@@ -228,8 +228,8 @@ def test_preset_motion_loses_the_papers_ideal_to_held_share_on_the_report_seeds(
     100-109 must lose what the paper's DOPE loses from its ideal to its held row."""
     from roft_sim.assets import load_object
     from roft_sim.generation import preset_scenario_paths
+    from roft_sim.harness.dope_calibration import REPORT_SEEDS, motion_held_loss
     from roft_sim.report.paper_reference import paper_tables
-    from roft_sim.sensors.dope_calibration import REPORT_SEEDS, motion_held_loss
 
     paths = {p.stem: p for p in preset_scenario_paths("fast-ycb")}
     points = {
@@ -246,7 +246,7 @@ def test_preset_motion_loses_the_papers_ideal_to_held_share_on_the_report_seeds(
 def test_spread_prints_each_sequence_with_the_pooled_runs_draws(capsys):
     """One line per object: the held ADD-AUC of each track alone (from the pooled scoring's own
     draws for that object and track), then their mean and sample standard deviation."""
-    from roft_sim.sensors.dope_calibration import _print_spread, score_dope
+    from roft_sim.harness.dope_calibration import _print_spread, score_dope
 
     points = np.random.default_rng(1).uniform(-0.05, 0.05, (64, 3))
     tracks = {"a_object": [_track(60), _track(90)]}
