@@ -20,14 +20,6 @@ MAX_FUNCTION_LINES = 80
 """A function's length: from its first statement after the docstring to its last line (comments
 and blank lines included, the signature and docstring not)."""
 
-LONG_FUNCTIONS_ALLOWED = frozenset(
-    {
-        # ROFT's own code, which its owner is restructuring: each entry goes when its function is
-        # split (the test fails on an entry that is no longer too long, so the list only shrinks).
-        "roft_sim/trackers/roft/config.py::VelocityKFConfig.__post_init__",
-    }
-)
-
 
 def _importlinter() -> dict:
     with (REPO / "pyproject.toml").open("rb") as f:
@@ -174,10 +166,7 @@ def test_the_length_scan_sees_a_long_function(tmp_path):
 
 
 def test_no_function_is_longer_than_80_lines():
-    long = _long_functions()
-    offenders = {name: n for name, n in long.items() if name not in LONG_FUNCTIONS_ALLOWED}
+    offenders = _long_functions()
     assert not offenders, "functions over 80 lines (split them): " + ", ".join(
         f"{name} ({n})" for name, n in sorted(offenders.items())
     )
-    stale = sorted(LONG_FUNCTIONS_ALLOWED - set(long))
-    assert not stale, f"no longer over 80 lines: remove {stale} from LONG_FUNCTIONS_ALLOWED"
