@@ -3,8 +3,10 @@
 Three threads share the run:
 
 - the **loader** builds each frame's :class:`~roft_sim.records.Observation` (images, flow, the
-  detections that arrive at that frame, as in ``--clock sim``) up to
-  :attr:`WallClock.lookahead_frames` ahead, so reading files does not delay the camera;
+  detections that arrive at that frame, as in ``--clock sim``) ahead of its release, into a
+  buffer of :attr:`WallClock.prefetch_mib`; the clock starts once the buffer is full (or holds
+  the whole sequence), so reading and decoding files competes as little as possible with the
+  tracker for the CPU and the GIL;
 - the **clock** (the calling thread) releases frame k at ``k / fps`` on the run's clock, i.e.
   ``time_scale * k / fps`` wall seconds after frame 0; a detection scheduled to arrive at frame
   ``arrival_k`` is released with that frame, at ``arrival_k / fps``;
@@ -26,7 +28,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import queue
 import threading
 import time
 from collections import deque
@@ -81,8 +82,8 @@ class WallClock:
     fast). Every time reported is on the run's clock."""
     when_busy: WhenBusy = "drop"
     """What happens to frames released while the tracker is still busy (see :data:`WHEN_BUSY`)."""
-    lookahead_frames: int = 4
-    """Observations the loader builds ahead of their release."""
+    prefetch_mib: int = 1024
+    """Memory for observations built ahead of their release [MiB] (at least one is)."""
 
     def __post_init__(self) -> None:
         scale = self.time_scale
@@ -97,8 +98,8 @@ class WallClock:
             raise ConfigError(
                 f"unknown when-busy policy {self.when_busy!r}; expected one of {WHEN_BUSY}"
             )
-        if isinstance(self.lookahead_frames, bool) or self.lookahead_frames < 1:
-            raise ConfigError(f"lookahead_frames must be >= 1, got {self.lookahead_frames!r}")
+        if isinstance(self.prefetch_mib, bool) or self.prefetch_mib < 0:
+            raise ConfigError(f"prefetch_mib must be an integer >= 0, got {self.prefetch_mib!r}")
 
     def describe(self) -> dict[str, Any]:
         """JSON-ready record for ``run.json`` and ``metrics.json``."""
@@ -184,6 +185,59 @@ class _Stopped(Exception):
     """Another thread failed; the clock stops releasing frames."""
 
 
+def _nbytes(observation: Observation) -> int:
+    """Bytes of the arrays of an observation (images, flow, masks)."""
+    arrays = [observation.rgb, observation.depth_m, *(m.mask for m in observation.masks)]
+    if observation.flow is not None:
+        arrays += [observation.flow.flow_px, observation.flow.valid]
+    return sum(a.nbytes for a in arrays if a is not None)
+
+
+class _Prefetched:
+    """Observations built ahead of their release, within a memory budget (thread-safe)."""
+
+    def __init__(self, budget_bytes: int, stop: threading.Event) -> None:
+        self._budget = budget_bytes
+        self._stop = stop
+        self._changed = threading.Condition()
+        self._items: deque[tuple[Observation, int]] = deque()
+        self._bytes = 0
+        self.full = False
+        """True once the loader has waited for room or built every frame."""
+
+    def put(self, observation: Observation) -> bool:
+        """Adds one (waiting for room); False when the run stopped meanwhile."""
+        size = _nbytes(observation)
+        with self._changed:
+            while self._items and self._bytes + size > self._budget:
+                self.full = True
+                if self._stop.is_set():
+                    return False
+                self._changed.wait(0.05)
+            self._items.append((observation, size))
+            self._bytes += size
+            self._changed.notify_all()
+            return True
+
+    def finish(self) -> None:
+        """The loader has built every frame."""
+        with self._changed:
+            self.full = True
+            self._changed.notify_all()
+
+    def get(self) -> Observation:
+        """The next observation (waiting for the loader)."""
+        with self._changed:
+            while not self._items:
+                if self._stop.is_set():
+                    raise _Stopped
+                self._changed.wait(0.05)
+            observation, size = self._items.popleft()
+            self._bytes -= size
+            self._changed.notify_all()
+            return observation
+
+
 class _Inbox:
     """Frames released to the tracker and not yet taken (thread-safe)."""
 
@@ -239,8 +293,11 @@ class _Run:
         check: Callable[[object, int], Estimate],
         gate: RobustStartGate | None,
         progress: Callable[[int], object] | None,
+        warm_up: Callable[[], object] | None,
     ) -> None:
         self.stream = stream
+        self.warm_up = warm_up
+        self.worker_ready = threading.Event()
         self.tracker = tracker
         self.n = n_frames
         self.fps = fps
@@ -251,7 +308,7 @@ class _Run:
         self.stop = threading.Event()
         self.errors: list[BaseException] = []
         self.stream_lock = threading.Lock()  # flow sources and readers are not thread-safe
-        self.loaded: queue.Queue[Observation] = queue.Queue(maxsize=clock.lookahead_frames)
+        self.loaded = _Prefetched(clock.prefetch_mib << 20, self.stop)
         self.inbox = _Inbox(clock.when_busy, self.stop)
         self.t0 = 0.0
         nan = np.full(n_frames, np.nan)
@@ -277,30 +334,20 @@ class _Run:
                 with self.stream_lock:
                     observation = self.stream.observation(k)
                 self.load_times_s[k] = time.perf_counter() - a
-                while True:
-                    if self.stop.is_set():
-                        return
-                    try:
-                        self.loaded.put(observation, timeout=0.05)
-                        break
-                    except queue.Full:
-                        continue
+                if not self.loaded.put(observation):
+                    return
+            self.loaded.finish()
         except BaseException as e:  # handed to the clock thread, which raises it
             self.fail(e)
-
-    def next_loaded(self) -> Observation:
-        while True:
-            try:
-                return self.loaded.get(timeout=0.05)
-            except queue.Empty:
-                if self.stop.is_set():
-                    raise _Stopped from None
 
     # ------------------------------------------------------------------ worker thread
     def work(self) -> None:
         previous = self.stream.schedule.camera.previous_delivered
         last_seen = -1
         try:
+            if self.warm_up is not None:
+                self.warm_up()
+            self.worker_ready.set()
             while (batch := self.inbox.take()) is not None:
                 for observation, dropped in batch:
                     k = observation.k
@@ -333,8 +380,12 @@ class _Run:
     # ------------------------------------------------------------------ clock (calling thread)
     def release_all(self) -> None:
         period_wall_s = self.clock.time_scale / self.fps
+        # the clock starts once the tracker has set itself up and the prefetch buffer is full
+        while not (self.worker_ready.is_set() and self.loaded.full):
+            if self.stop.wait(0.005):
+                raise _Stopped
         for k in range(self.n):
-            observation = self.next_loaded()
+            observation = self.loaded.get()
             if k == 0:
                 self.t0 = time.perf_counter()
             wait_s = self.t0 + k * period_wall_s - time.perf_counter()
@@ -375,6 +426,7 @@ def step_against_clock(
     check: Callable[[object, int], Estimate],
     gate: RobustStartGate | None = None,
     progress: Callable[[int], object] | None = None,
+    warm_up: Callable[[], object] | None = None,
 ) -> tuple[WallClockTimeline, F64, F64]:
     """Runs an already reset ``tracker`` over frames ``0 .. n_frames - 1`` of ``stream`` against a
     real clock (module docstring).
@@ -389,6 +441,9 @@ def step_against_clock(
         gate: the robust-start gate (``--init robust``), applied in the worker thread, where the
             tracker renders too (an OpenGL context belongs to one thread).
         progress: called with 1 after every step (from the worker thread).
+        warm_up: called once in the worker thread before the clock starts (e.g. building the
+            depth renderer, whose OpenGL context must belong to the thread that renders), as a
+            tracker sets itself up before its camera runs.
 
     Returns:
         ``(timeline, step_times_s, load_times_s)``: the :class:`WallClockTimeline`, and per frame
@@ -397,7 +452,7 @@ def step_against_clock(
     Raises:
         Whatever the tracker, the stream or ``check`` raised, in this thread.
     """
-    run = _Run(stream, tracker, n_frames, fps, clock, check, gate, progress)
+    run = _Run(stream, tracker, n_frames, fps, clock, check, gate, progress, warm_up)
     run.run()
     estimates = tuple(e for e in run.estimates if e is not None)
     if len(estimates) != n_frames:  # pragma: no cover - every frame is stepped unless one failed

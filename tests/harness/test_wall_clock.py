@@ -117,7 +117,8 @@ def test_slow_tracker_under_drop_loses_frames_but_no_detection(seq):
 
 def test_slow_tracker_under_queue_lags_more_and_more(seq):
     sim, sim_log = _run(seq, None)
-    run, log = _run(seq, WallClock(when_busy="queue"), sleep_s=SLOW_STEP_S)
+    # no prefetch: the loader builds each frame while the clock runs
+    run, log = _run(seq, WallClock(when_busy="queue", prefetch_mib=0), sleep_s=SLOW_STEP_S)
     timeline = run.wall_clock
     assert timeline is not None
     stats = evaluate_run(run).figures
@@ -172,7 +173,7 @@ def test_a_protocol_error_in_the_tracker_thread_is_raised_by_the_run(seq):
         ({"time_scale": float("nan")}, "finite and > 0"),
         ({"time_scale": float("inf")}, "finite and > 0"),
         ({"when_busy": "wait"}, "unknown when-busy policy"),
-        ({"lookahead_frames": 0}, "lookahead_frames"),
+        ({"prefetch_mib": -1}, "prefetch_mib must be an integer >= 0"),
     ],
 )
 def test_bad_clock_settings(kwargs, match):
