@@ -15,8 +15,7 @@ from harness_cases import EchoConfig, EchoTracker, box_sequence, write_box_datas
 from roft_sim.cli import main
 from roft_sim.errors import ConfigError, PluginError
 from roft_sim.faults import load_faults
-from roft_sim.harness import RunOptions, evaluate_run, run_sequence
-from roft_sim.harness.wall_clock import WallClock
+from roft_sim.harness import RunOptions, WallClock, evaluate_run, run_sequence
 from roft_sim.records import Estimate, Observation
 from roft_sim.trackers import TrackerContext, TrackerSpec
 
