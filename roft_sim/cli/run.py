@@ -1,6 +1,7 @@
 """``roft-sim run``: one tracker over datasets under faults; writes estimates and metrics.
 
     roft-sim run DATASET... --tracker NAME [--faults PRESET|FILE] [--flow SPEC] [--out DIR]
+                 [--clock sim|wall [--when-busy drop|queue] [--time-scale S]]
 
 Everything is described in docs/running.md.
 """
@@ -24,6 +25,7 @@ __all__ = [
     "register",
     "resolve_tracker",
     "build_run_options",
+    "build_clock",
     "add_input_arguments",
     "command_record",
     "print_metrics_table",
@@ -158,6 +160,28 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     )
     parser.add_argument("--overwrite", action="store_true", help="empty a non-empty --out first")
     parser.add_argument(
+        "--clock",
+        choices=("sim", "wall"),
+        default="sim",
+        help="sim (default): the tracker is stepped in lockstep with simulated time, "
+        "deterministic; wall: frames and detections are released in real time at the camera "
+        "rate, the tracker runs in its own thread, and each frame is scored with the estimate "
+        "delivered by its deadline (docs/wall_clock.md)",
+    )
+    parser.add_argument(
+        "--when-busy",
+        choices=("drop", "queue"),
+        help="with --clock wall: frames released while the tracker is busy are dropped (default; "
+        "it then takes the newest) or queued (it takes them all, in order, late)",
+    )
+    parser.add_argument(
+        "--time-scale",
+        type=float,
+        metavar="S",
+        help="with --clock wall: wall seconds per second of the run's clock (default 1); 2 gives "
+        "the tracker twice the time per frame, 0.5 half (a slower machine, a faster camera)",
+    )
+    parser.add_argument(
         "--layout",
         choices=("ours", "reference"),
         default="ours",
@@ -215,6 +239,33 @@ def build_run_options(args: argparse.Namespace, tracker: str, config: Any) -> An
     )
 
 
+def build_clock(args: argparse.Namespace) -> Any:
+    """The :class:`~roft_sim.harness.wall_clock.WallClock` of ``--clock wall``, None for ``sim``.
+
+    Raises:
+        ConfigError: ``--when-busy`` or ``--time-scale`` without ``--clock wall``, or a time
+            scale that is not finite and > 0.
+    """
+    from roft_sim.harness.wall_clock import WallClock
+
+    if args.clock != "wall":
+        given = [
+            name
+            for name, value in (("--when-busy", args.when_busy), ("--time-scale", args.time_scale))
+            if value is not None
+        ]
+        if given:
+            raise ConfigError(
+                f"{' and '.join(given)} only apply to a real clock; add --clock wall (got "
+                f"--clock {args.clock})"
+            )
+        return None
+    return WallClock(
+        time_scale=1.0 if args.time_scale is None else args.time_scale,
+        when_busy=args.when_busy or "drop",
+    )
+
+
 def _check_inputs(sources: list[Any], options: Any) -> None:
     """Validates the sequence names and every sequence's inputs before anything is written."""
     from roft_sim.harness.inputs import check_inputs
@@ -236,14 +287,32 @@ def command_record(args: argparse.Namespace) -> list[str]:
 
 
 def print_metrics_table(metrics: dict[str, dict[str, Any]], first_header: str) -> None:
-    """Prints the per-sequence + ALL + MEAN table of a ``metrics.json`` on stdout."""
-    from roft_sim.report.tables import METRIC_COLUMNS, Column, text_table
+    """Prints the per-sequence + ALL + MEAN table of a ``metrics.json`` on stdout (with the
+    timing columns of a wall-clock run when its entries have them)."""
+    from roft_sim.report.tables import METRIC_COLUMNS, WALL_CLOCK_COLUMNS, Column, text_table
 
     order = [n for n in metrics if n not in ("ALL", "MEAN")] + [
         n for n in ("ALL", "MEAN") if n in metrics
     ]
     rows = [{"name": n, **metrics[n]} for n in order]
-    print(text_table([Column("name", first_header, align="left"), *METRIC_COLUMNS], rows), end="")
+    columns = [Column("name", first_header, align="left"), *METRIC_COLUMNS]
+    if any("latency_p50_ms" in row for row in rows):
+        columns += WALL_CLOCK_COLUMNS
+    print(text_table(columns, rows), end="")
+
+
+def clock_note(clock: Any) -> str:
+    """One line under the table of a wall-clock run: the clock and what its columns mean."""
+    when_busy = (
+        "dropped while busy (the tracker takes the newest)"
+        if clock.when_busy == "drop"
+        else "queued while busy"
+    )
+    return (
+        f"clock: wall, time scale {clock.time_scale:g}, frames {when_busy}; each frame scored with "
+        "the estimate delivered by the next frame's release; latency from release to delivery "
+        "[ms, run clock]; missed = frames whose own estimate was late (docs/wall_clock.md)"
+    )
 
 
 def interval_velocity_summaries(sources: list[Any]) -> dict[str, dict[str, Any]]:
@@ -320,6 +389,7 @@ def _run(args: argparse.Namespace) -> int:
 
     spec, config = resolve_tracker(args.tracker, args.tracker_config)
     options = build_run_options(args, spec.name, config)
+    clock = build_clock(args)
     try:
         sources = open_sequences(args.datasets)
     except DatasetFormatError as e:
@@ -346,10 +416,14 @@ def _run(args: argparse.Namespace) -> int:
         layout=args.layout,
         reference_config=args.reference_config,
         tum=args.tum,
+        clock=clock,
     )
     if args.json:
+        from roft_sim.harness.wall_clock import clock_record
+
         summary = {
             "out": str(out),
+            "clock": clock_record(clock),
             "invalid": options.invalid,
             "metrics": result.metrics,
             "interval_velocity": interval_velocity_summaries(sources),
@@ -366,6 +440,8 @@ def _run(args: argparse.Namespace) -> int:
 
         print_metrics_table(result.metrics, "sequence")
         print(policy_note(options.invalid))
+        if clock is not None:
+            print(clock_note(clock))
         print_interval_velocity_table(interval_velocity_summaries(sources))
         print(f"results in {out}", file=sys.stderr)
         if result.reference_tree is not None:

@@ -273,8 +273,14 @@ class ObservationStream:
             detection_id=event.detection_id,
         )
 
-    def _flow(self, k: int, camera: CameraSchedule) -> FlowField | None:
-        previous = int(camera.previous_delivered[k])
+    def flow_since(self, previous: int, k: int) -> FlowField | None:
+        """The flow camera frame ``k`` carries when the last frame with images before it was
+        ``previous`` (-1: none), with frame ``k``'s flow faults applied.
+
+        :meth:`observation` passes the last frame the camera delivered; a harness that lets a
+        busy tracker miss frames passes the last frame the tracker saw.
+        """
+        camera = self.schedule.camera
         if self.flow_source is None or previous < 0:
             return None
         backward = any(c.params.get("backward") for c in camera.flow[k])
@@ -306,7 +312,7 @@ class ObservationStream:
             for c in camera.depth[k]:
                 depth = self._fault(c).apply_depth(depth, c.params)
             depth = _read_only(depth)
-            flow = self._flow(k, camera)
+            flow = self.flow_since(int(camera.previous_delivered[k]), k)
         ctx = self._context()
         poses = tuple(self._pose(e, ctx) for e in schedule.arriving_at("pose", k))
         masks = tuple(self._mask(e, ctx) for e in schedule.arriving_at("mask", k))

@@ -5,6 +5,7 @@
 - :func:`evaluate_run`: its metrics and synchronisation figures.
 - :func:`run_sequences` / :func:`open_sequences`: ``roft-sim run`` as a library call.
 - :mod:`roft_sim.harness.outputs`: the files a run writes and their readers.
+- :class:`WallClock`: run the tracker against a real clock instead (docs/wall_clock.md).
 
 See docs/running.md.
 """
@@ -29,6 +30,7 @@ from roft_sim.harness.run_dataset import (
     run_sequences,
 )
 from roft_sim.harness.runner import SeedPlan, SequenceRun, run_sequence, seed_plan
+from roft_sim.harness.wall_clock import WallClock
 
 __all__ = [
     "AUTO",
@@ -42,6 +44,7 @@ __all__ = [
     "SequenceEvaluation",
     "SequenceRun",
     "SequenceSource",
+    "WallClock",
     "LazyDepthRenderer",
     "ResolvedInputs",
     "WithGroundTruthPoses",

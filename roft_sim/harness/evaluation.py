@@ -11,6 +11,11 @@ the figures that need the fault ledger:
   back within the band of the frames outside bursts (95th percentile), when poses were dropped;
 - ``consistency``: NEES of the 12-D state (pose, ``v_obj``, ``w``) against the single-run 95 %
   chi-square interval, when the tracker reports covariances.
+
+With ``--clock wall`` the metrics score the estimate held at each frame's deadline
+(``SequenceRun.estimates``) and the entry adds the clock and its timing figures
+(:class:`~roft_sim.metrics.deadlines.DeadlineStats`); the outlier and consistency figures, which
+describe the tracker rather than its timing, use the tracker's own estimates.
 """
 
 from __future__ import annotations
@@ -23,6 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roft_sim.harness.runner import SequenceRun
+from roft_sim.harness.wall_clock import clock_record
 from roft_sim.metrics import (
     InvalidPolicy,
     SequenceMetrics,
@@ -35,6 +41,7 @@ from roft_sim.metrics import (
     recovery_frames,
     state_error,
 )
+from roft_sim.metrics.deadlines import DeadlineStats
 from roft_sim.records import Estimate, PoseTrack
 
 F64 = NDArray[np.float64]
@@ -65,6 +72,8 @@ class SequenceEvaluation:
     """Pose and velocity metrics; None when the sequence has no ground truth."""
     figures: dict[str, Any]
     """JSON-ready synchronisation and consistency figures (see the module docstring)."""
+    deadlines: DeadlineStats | None = None
+    """The timing of a ``--clock wall`` run (its summary is in ``figures``); None otherwise."""
 
     def entry(self) -> dict[str, Any]:
         """The sequence's entry of ``metrics.json``: the metric scalars and the figures."""
@@ -106,10 +115,11 @@ def _arrival_figures(run: SequenceRun, m: SequenceMetrics) -> dict[str, Any]:
 
 def _outlier_figures(run: SequenceRun) -> dict[str, Any] | None:
     injected = run.ledger.outlier_ids()
-    rejected_any = any(e.rejected_pose_ids for e in run.estimates)
+    estimates = run.tracker_estimates
+    rejected_any = any(e.rejected_pose_ids for e in estimates)
     if not injected and not rejected_any:
         return None
-    s = outlier_rejection_stats_from_estimates(run.estimates, injected)
+    s = outlier_rejection_stats_from_estimates(estimates, injected)
     return {
         "poses_seen": s.poses_seen,
         "poses_rejected": s.poses_rejected,
@@ -196,14 +206,15 @@ def estimate_errors(
 
 def _consistency_figures(run: SequenceRun) -> dict[str, Any] | None:
     gt = run.ground_truth
+    estimates = run.tracker_estimates
     rows = [
         k
-        for k, e in enumerate(run.estimates)
+        for k, e in enumerate(estimates)
         if e.valid and e.covariance is not None and np.isfinite(e.T_cam_obj).all()
     ]
     if gt is None or not rows:
         return None
-    errors, covs = estimate_errors([run.estimates[k] for k in rows], gt, np.array(rows))
+    errors, covs = estimate_errors([estimates[k] for k in rows], gt, np.array(rows))
     try:
         values = nees(errors, covs)
     except ValueError as e:
@@ -224,8 +235,12 @@ def evaluate_run(
 ) -> SequenceEvaluation:
     """Scores one run (see the module docstring); metrics are None without ground truth."""
     figures: dict[str, Any] = {"faults": run.ledger.summary()}
+    deadlines = None
+    if run.wall_clock is not None:
+        deadlines = run.wall_clock.stats()
+        figures |= {"clock": clock_record(run.wall_clock.clock)} | deadlines.summary()
     if run.ground_truth is None:
-        return SequenceEvaluation(metrics=None, figures=figures)
+        return SequenceEvaluation(metrics=None, figures=figures, deadlines=deadlines)
     m = evaluate_estimates(
         run.estimates,
         run.ground_truth,
@@ -243,4 +258,4 @@ def evaluate_run(
     ):
         if value is not None:
             figures[key] = value
-    return SequenceEvaluation(metrics=m, figures=figures)
+    return SequenceEvaluation(metrics=m, figures=figures, deadlines=deadlines)

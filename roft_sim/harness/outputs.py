@@ -23,6 +23,13 @@ One folder per sequence (docs/running.md, "Outputs"):
 ``frame_errors.npz``       the per-frame errors behind the metrics (ADD, position, rotation,
                            velocity errors) and the metric scalars; pooled by sweeps and reports.
 ``metrics.json``           this sequence's metrics entry.
+``wall_clock.npz``         with ``--clock wall``: per frame ``release_s``, ``started_s``,
+                           ``delivered_s`` (the run's clock [s]), ``seen``, ``dropped_busy``,
+                           ``held_from_k`` (the frame whose estimate was scored, -1: none), and
+                           ``fps``, ``time_scale``, ``when_busy``; the pose and velocity files and
+                           ``estimates.npz`` then hold the estimates scored at each deadline.
+``tracker_estimates.npz``  with ``--clock wall``: the tracker's own estimate of each frame
+                           (the format of ``estimates.npz``).
 ``gt.tum``, ``estimate.tum``  with ``--tum``: TUM trajectories ``t tx ty tz qx qy qz qw`` (time
                            [s] = k / fps, ``T_cam_obj`` position [m], unit quaternion scalar
                            LAST) of the ground truth and of the frames with a valid estimate,
@@ -69,6 +76,9 @@ __all__ = [
     "DELIVERIES_FILE",
     "FRAME_ERRORS_FILE",
     "SEQUENCE_METRICS_FILE",
+    "WALL_CLOCK_FILE",
+    "TRACKER_ESTIMATES_FILE",
+    "save_wall_clock",
     "GT_TUM_FILE",
     "ESTIMATE_TUM_FILE",
     "tum_text",
@@ -95,6 +105,8 @@ ESTIMATES_FILE = "estimates.npz"
 DELIVERIES_FILE = "deliveries.npz"
 FRAME_ERRORS_FILE = "frame_errors.npz"
 SEQUENCE_METRICS_FILE = "metrics.json"
+WALL_CLOCK_FILE = "wall_clock.npz"
+TRACKER_ESTIMATES_FILE = "tracker_estimates.npz"
 GT_TUM_FILE = "gt.tum"
 ESTIMATE_TUM_FILE = "estimate.tum"
 
@@ -420,6 +432,30 @@ def load_frame_errors(path: str | Path) -> SequenceMetrics:
     )
 
 
+# -------------------------------------------------------------------------------- wall clock
+def save_wall_clock(folder: Path, run: SequenceRun) -> None:
+    """Writes ``wall_clock.npz`` and ``tracker_estimates.npz`` of a ``--clock wall`` run (nothing
+    for a simulated-time run)."""
+    timeline = run.wall_clock
+    if timeline is None:
+        return
+    _savez(
+        folder / WALL_CLOCK_FILE,
+        release_s=timeline.release_s,
+        started_s=timeline.started_s,
+        delivered_s=timeline.delivered_s,
+        seen=timeline.seen,
+        dropped_busy=timeline.dropped_busy,
+        held_from_k=timeline.held_index(),
+        fps=np.int64(timeline.fps),
+        time_scale=np.float64(timeline.clock.time_scale),
+        when_busy=np.str_(timeline.clock.when_busy),
+    )
+    save_estimates(
+        folder / TRACKER_ESTIMATES_FILE, timeline.tracker_estimates, step_times_s=run.step_times_s
+    )
+
+
 # ------------------------------------------------------------------------------------ TUM
 def tum_text(t_s: F64, T_cam_obj: F64) -> str:
     """TUM trajectory text, one ``t tx ty tz qx qy qz qw`` line per pose (quaternion scalar
@@ -476,6 +512,7 @@ def write_sequence_outputs(
         load_times_s=run.load_times_s,
     )
     save_deliveries(folder / DELIVERIES_FILE, run)
+    save_wall_clock(folder, run)
     if evaluation.metrics is not None:
         save_frame_errors(folder / FRAME_ERRORS_FILE, evaluation.metrics)
     write_json(folder / SEQUENCE_METRICS_FILE, evaluation.entry())

@@ -32,7 +32,9 @@ from roft_sim.harness.reference_layout import (
     write_reference_tree,
 )
 from roft_sim.harness.runner import SequenceRun, run_sequence
+from roft_sim.harness.wall_clock import WallClock, clock_record
 from roft_sim.metrics import POOLED_ALL, POOLED_MEAN, SequenceMetrics, pool_metrics
+from roft_sim.metrics.deadlines import pool_deadline_stats
 from roft_sim.trackers import TrackerSpec, get_tracker_spec, load_tracker_config
 
 __all__ = [
@@ -150,13 +152,19 @@ def _pooled_metrics(
     evaluations: dict[str, SequenceEvaluation],
 ) -> tuple[dict[str, SequenceMetrics], dict[str, dict[str, Any]]]:
     """ALL and MEAN over the scored sequences, and the ``metrics.json`` entries: ALL, MEAN, then
-    one per sequence."""
+    one per sequence. After a wall-clock run, ALL and MEAN both carry the timing figures of all
+    frames pooled (as they carry the pooled step times)."""
     scored = {n: e.metrics for n, e in evaluations.items() if e.metrics is not None}
     pooled: dict[str, SequenceMetrics] = pool_metrics(scored) if scored else {}
+    timed = [e for e in evaluations.values() if e.deadlines is not None]
+    timing_entry: dict[str, Any] = {}
+    if timed:
+        stats = pool_deadline_stats([e.deadlines for e in timed if e.deadlines is not None])
+        timing_entry = {"clock": timed[0].figures["clock"]} | stats.summary()
     metrics: dict[str, dict[str, Any]] = {}
     for name in (POOLED_ALL, POOLED_MEAN):
         if name in pooled:
-            metrics[name] = pooled[name].summary()
+            metrics[name] = pooled[name].summary() | timing_entry
     for name, evaluation in evaluations.items():
         metrics[name] = evaluation.entry()
     return pooled, metrics
@@ -171,6 +179,7 @@ def _run_each(
     progress: bool,
     on_sequence_done: Callable[[SequenceRun, SequenceEvaluation], None] | None,
     tum: bool,
+    clock: WallClock | None,
 ) -> tuple[list[SequenceRun], dict[str, SequenceEvaluation], list[dict[str, Any]]]:
     """Runs, scores and writes every sequence in turn (one progress bar over all frames; ``tum``:
     TUM files too); returns the runs, their evaluations by name and their ``run.json`` records."""
@@ -194,6 +203,7 @@ def _run_each(
                 object_model=model,
                 depth_renderer_factory=depth_renderer_factory,
                 progress=bar.update,
+                clock=clock,
             )
             evaluation = evaluate_run(run, invalid=options.invalid)
             write_sequence_outputs(out / seq.name, run, evaluation, tum=tum)
@@ -219,6 +229,7 @@ def run_sequences(
     layout: OutputLayout = "ours",
     reference_config: str | None = None,
     tum: bool = False,
+    clock: WallClock | None = None,
 ) -> RunResult:
     """Runs ``options.tracker`` over every sequence and writes the results into ``out_dir``.
 
@@ -236,6 +247,9 @@ def run_sequences(
             :mod:`~roft_sim.harness.reference_layout`).
         reference_config: its ``<config>`` folder; None = :func:`reference_config_name`.
         tum: also write ``gt.tum`` and ``estimate.tum`` per sequence (evo's TUM format).
+        clock: None = simulated time (lockstep, deterministic); a
+            :class:`~roft_sim.harness.wall_clock.WallClock` runs against a real clock
+            (docs/wall_clock.md).
 
     Returns:
         The :class:`RunResult`.
@@ -261,7 +275,7 @@ def run_sequences(
     out.mkdir(parents=True, exist_ok=True)
 
     runs, evaluations, described = _run_each(
-        sources, options, spec, out, depth_renderer_factory, progress, on_sequence_done, tum
+        sources, options, spec, out, depth_renderer_factory, progress, on_sequence_done, tum, clock
     )
     pooled, metrics = _pooled_metrics(evaluations)
     write_json(out / METRICS_FILE, metrics)
@@ -283,6 +297,7 @@ def run_sequences(
             "command": list(command) if command is not None else None,
             "tracker": tracker_description(spec),
             "options": jsonable(options),
+            "clock": clock_record(clock),
             "sequences": described,
             "layout": layout,
             "reference_config": None if tree is None else tree.config_name,

@@ -23,6 +23,7 @@ import time
 import zlib
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -43,6 +44,12 @@ from roft_sim.harness.inputs import (
 )
 from roft_sim.harness.options import RunOptions
 from roft_sim.harness.robust_start import RobustStartGate
+from roft_sim.harness.wall_clock import (
+    WallClock,
+    WallClockTimeline,
+    held_estimates,
+    step_against_clock,
+)
 from roft_sim.records import Estimate, ObjectModel, PoseTrack
 from roft_sim.sensors.flow_sources import make_flow_source
 from roft_sim.trackers import (
@@ -122,9 +129,11 @@ class SequenceRun:
     fps: int
     """Camera rate [Hz]."""
     estimates: tuple[Estimate, ...]
-    """One estimate per camera frame, ``estimates[k].k == k``."""
+    """One estimate per camera frame, ``estimates[k].k == k``: the tracker's own (``--clock
+    sim``), or the one a consumer held at frame k's deadline (``--clock wall``, see
+    :mod:`roft_sim.harness.wall_clock`)."""
     step_times_s: F64
-    """(N,) wall time of each ``tracker.step`` call [s]."""
+    """(N,) wall time of each ``tracker.step`` call [s] (of the step for frame k)."""
     load_times_s: F64
     """(N,) wall time of building each observation (reading images, flow, faults) [s]."""
     ledger: FaultLedger
@@ -146,6 +155,14 @@ class SequenceRun:
     """Whether a depth renderer was actually built (False: the run never touched MuJoCo)."""
     wall_s: float
     """Wall time of the whole run loop [s]."""
+    wall_clock: WallClockTimeline | None = None
+    """With ``--clock wall``: when each frame was released, stepped and answered, and the
+    tracker's own estimates; None in simulated time."""
+
+    @property
+    def tracker_estimates(self) -> tuple[Estimate, ...]:
+        """The tracker's own estimate for each frame (``estimates`` unless the clock was wall)."""
+        return self.estimates if self.wall_clock is None else self.wall_clock.tracker_estimates
 
     def __len__(self) -> int:
         return len(self.estimates)
@@ -255,6 +272,14 @@ def _step_through(
     return estimates, step_times, load_times
 
 
+def _warm_up(renderer: LazyDepthRenderer, intrinsics: CameraIntrinsics) -> None:
+    """Builds the depth renderer and draws once (the object half a metre ahead), so that a
+    wall-clock run does not count the one-time set-up of MuJoCo and OpenGL as a step."""
+    T_cam_obj = np.eye(4)
+    T_cam_obj[2, 3] = 0.5
+    renderer.render_depth(T_cam_obj[None], intrinsics)
+
+
 def run_sequence(
     sequence: Sequence,
     options: RunOptions,
@@ -263,6 +288,7 @@ def run_sequence(
     object_model: ObjectModel | None = None,
     depth_renderer_factory: DepthRendererFactory | None = None,
     progress: Callable[[int], object] | None = None,
+    clock: WallClock | None = None,
 ) -> SequenceRun:
     """Runs ``options.tracker`` over ``sequence`` under ``options.faults``.
 
@@ -276,6 +302,8 @@ def run_sequence(
         depth_renderer_factory: builds the depth renderer for trackers that need one (default:
             MuJoCo's, built lazily on the first render).
         progress: called with 1 after every frame (e.g. ``tqdm.update``).
+        clock: None steps the tracker in lockstep with simulated time (deterministic); a
+            :class:`~roft_sim.harness.wall_clock.WallClock` runs it against a real clock.
 
     Returns:
         The :class:`SequenceRun`.
@@ -311,9 +339,25 @@ def run_sequence(
     tracker = create_tracker(spec, context, options.tracker_config)
     ground_truth = sequence.ground_truth()
     tracker.reset(_initial_estimate(options, sequence.name, ground_truth))
-    estimates, step_times, load_times = _step_through(
-        stream, tracker, len(sequence), spec.name, progress, gate
-    )
+    timeline = None
+    if clock is None:
+        estimates, step_times, load_times = _step_through(
+            stream, tracker, len(sequence), spec.name, progress, gate
+        )
+    else:
+        tracker_name = spec.name
+        timeline, step_times, load_times = step_against_clock(
+            stream,
+            tracker,
+            len(sequence),
+            fps=int(sequence.fps),
+            clock=clock,
+            check=lambda estimate, k: _checked(estimate, k, tracker_name),
+            gate=gate,
+            progress=progress,
+            warm_up=None if renderer is None else partial(_warm_up, renderer, sequence.intrinsics),
+        )
+        estimates = list(held_estimates(timeline.tracker_estimates, timeline.held_index()))
     schedule = stream.schedule
     return SequenceRun(
         sequence_name=sequence.name,
@@ -333,4 +377,5 @@ def run_sequence(
         object_model=model,
         depth_renderer_built=renderer is not None and renderer.built,
         wall_s=time.perf_counter() - t0,
+        wall_clock=timeline,
     )

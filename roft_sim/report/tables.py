@@ -23,6 +23,7 @@ __all__ = [
     "latex_table",
     "ERROR_COLUMNS",
     "METRIC_COLUMNS",
+    "WALL_CLOCK_COLUMNS",
 ]
 
 MISSING = "-"
@@ -58,6 +59,16 @@ METRIC_COLUMNS: tuple[Column, ...] = (
     Column("time_p95_ms", "step ms (p95)", ".2f"),
 )
 """The metric columns of the ``run`` table (keys of ``metrics.json`` entries)."""
+
+WALL_CLOCK_COLUMNS: tuple[Column, ...] = (
+    Column("latency_p50_ms", "latency ms (p50)", ".1f"),
+    Column("latency_p95_ms", "(p95)", ".1f"),
+    Column("latency_max_ms", "(max)", ".1f"),
+    Column("deadline_misses", "missed", "d"),
+    Column("frames_dropped_busy", "dropped busy", "d"),
+    Column("queue_max", "queue max", "d"),
+)
+"""The timing columns a ``--clock wall`` run adds to the ``run`` table (docs/wall_clock.md)."""
 
 
 def format_cell(value: Any, fmt: str = "") -> str:
