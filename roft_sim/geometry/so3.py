@@ -17,6 +17,7 @@ All functions accept any leading batch shape and return float64 arrays.
 from __future__ import annotations
 
 import math
+from typing import cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -154,6 +155,16 @@ def quat_rotate(q: ArrayLike, p: ArrayLike) -> F64:
 
 def matrix_from_quat(q: ArrayLike) -> F64:
     """Rotation matrices ``(..., 3, 3)`` from quaternions ``(..., 4)`` (normalised first)."""
+    q = np.asarray(q, dtype=np.float64)
+    if q.shape == (4,):  # one quaternion: scalar arithmetic, the same operations
+        w, x, y, z = _unit_quat_scalars(q)
+        return np.array(
+            [
+                [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+            ]
+        )
     q = as_quat_wxyz(q)
     w, x, y, z = np.moveaxis(q, -1, 0)
     R = np.empty(q.shape[:-1] + (3, 3))
@@ -178,6 +189,8 @@ def quat_from_matrix(R: ArrayLike) -> F64:
     R = np.asarray(R, dtype=np.float64)
     if R.shape[-2:] != (3, 3):
         raise ValueError(f"expected rotation matrices of shape (..., 3, 3), got {R.shape}")
+    if R.shape == (3, 3):
+        return _quat_from_one_matrix(R)
     m00, m11, m22 = R[..., 0, 0], R[..., 1, 1], R[..., 2, 2]
     trace = m00 + m11 + m22
     # 4 * squared components, one candidate per case.
@@ -205,6 +218,40 @@ def quat_from_matrix(R: ArrayLike) -> F64:
     )
     q /= np.linalg.norm(q, axis=-1, keepdims=True)
     return np.where(q[..., :1] < 0.0, -q, q)
+
+
+def _quat_from_one_matrix(R: F64) -> F64:
+    """:func:`quat_from_matrix` of one (3, 3) matrix in scalar arithmetic (the same operations
+    as the batch path: equal results, a tenth of the time)."""
+    (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = R.tolist()
+    trace = m00 + m11 + m22
+    cand = [1 + trace, 1 + m00 - m11 - m22, 1 - m00 + m11 - m22, 1 - m00 - m11 + m22]
+    case = cand.index(max(cand))
+    s = 2.0 * math.sqrt(max(cand[case], 1e-300))
+    d21, d02, d10 = m21 - m12, m02 - m20, m10 - m01
+    s21, s02, s10 = m21 + m12, m02 + m20, m10 + m01
+    q = [
+        [s / 4, d21 / s, d02 / s, d10 / s],
+        [d21 / s, s / 4, s10 / s, s02 / s],
+        [d02 / s, s10 / s, s / 4, s21 / s],
+        [d10 / s, s02 / s, s21 / s, s / 4],
+    ]
+    w, x, y, z = q[0][case], q[1][case], q[2][case], q[3][case]
+    n = math.sqrt(w * w + x * x + y * y + z * z)
+    out = np.array([w / n, x / n, y / n, z / n])
+    return -out if out[0] < 0.0 else out
+
+
+def _unit_quat_scalars(q: F64) -> tuple[float, float, float, float]:
+    """The components of one quaternion (4,) divided by its norm, as :func:`as_quat_wxyz`
+    validates and normalises them (the same operations)."""
+    w, x, y, z = q.tolist()
+    if not all(math.isfinite(c) for c in (w, x, y, z)):
+        raise ValueError("quaternion contains NaN or inf")
+    n = math.sqrt(w * w + x * x + y * y + z * z)
+    if n < 1e-12:
+        raise ValueError("quaternion has zero norm")
+    return w / n, x / n, y / n, z / n
 
 
 def quat_from_rotvec(r: ArrayLike) -> F64:
@@ -357,7 +404,18 @@ def quat_angle(q1: ArrayLike, q2: ArrayLike) -> F64:
     Computed as ``2 atan2(|vec(q1* ⊗ q2)|, |w(q1* ⊗ q2)|)``: arccos of the dot product loses
     half the digits near 0.
     """
-    d = quat_multiply(quat_conjugate(as_quat_wxyz(q1)), as_quat_wxyz(q2))
+    a, b = np.asarray(q1, dtype=np.float64), np.asarray(q2, dtype=np.float64)
+    if a.shape == (4,) and b.shape == (4,):  # two quaternions: scalar arithmetic
+        w1, x1, y1, z1 = _unit_quat_scalars(a)
+        x1, y1, z1 = -x1, -y1, -z1  # the conjugate
+        w2, x2, y2, z2 = _unit_quat_scalars(b)
+        w = w1 * w2 - (x1 * x2 + y1 * y2 + z1 * z2)
+        vx = w1 * x2 + w2 * x1 + (y1 * z2 - z1 * y2)
+        vy = w1 * y2 + w2 * y1 + (z1 * x2 - x1 * z2)
+        vz = w1 * z2 + w2 * z1 + (x1 * y2 - y1 * x2)
+        one = np.float64(2.0 * math.atan2(math.sqrt(vx * vx + vy * vy + vz * vz), abs(w)))
+        return cast(F64, one)  # a numpy scalar, as the batch path gives for one pair
+    d = quat_multiply(quat_conjugate(as_quat_wxyz(a)), as_quat_wxyz(b))
     angle: F64 = 2.0 * np.arctan2(np.linalg.norm(d[..., 1:], axis=-1), np.abs(d[..., 0]))
     return angle
 

@@ -18,6 +18,7 @@ Nothing here imports hypothesis or MuJoCo.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -277,6 +278,14 @@ def _default_depth_renderer(sequence: DatasetSequence) -> DepthRenderer:
     return LazyDepthRenderer(mujoco_depth_renderer, resolve_object_model(sequence))
 
 
+@functools.lru_cache(maxsize=64)
+def _registered_spec(name: str) -> TrackerSpec:
+    """The spec registered as ``name``, looked up once per process (reading every installed
+    distribution's entry points takes about 10 ms: a property test builds thousands of
+    trackers)."""
+    return get_tracker_spec(name)
+
+
 def tracker_for(
     spec: TrackerSpec | str,
     sequence: DatasetSequence,
@@ -301,7 +310,7 @@ def tracker_for(
         ConfigError: ``config`` is not a ``spec.config_type``.
     """
     if isinstance(spec, str):
-        spec = get_tracker_spec(spec)
+        spec = _registered_spec(spec)
     model = sequence.object_model()
     if model is None:
         from roft_sim.harness.inputs import resolve_object_model

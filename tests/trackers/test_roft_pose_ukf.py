@@ -38,6 +38,11 @@ from roft_sim.trackers.roft.pose_ukf import (
 @given(unit_quaternions(), unit_quaternions())
 def test_hot_path_product_equals_geometry(a, b):
     np.testing.assert_allclose(_qmul(a, b), quat_multiply(a, b), atol=1e-15)
+    batch = np.stack([a, b, quat_multiply(a, b)])  # (N, 4) with (N, 4) and with (4,)
+    np.testing.assert_allclose(
+        _qmul(batch, batch[::-1]), quat_multiply(batch, batch[::-1]), atol=1e-15
+    )
+    np.testing.assert_allclose(_qmul(batch, b), quat_multiply(batch, b), atol=1e-15)
 
 
 @given(st.one_of(rotation_vectors(), small_rotation_vectors()))

@@ -163,21 +163,29 @@ def markley_mean(q: F64, weights: F64) -> F64:
     return -mean if mean[0] < 0 else mean
 
 
+_HAMILTON = np.zeros((4, 4, 4))
+"""``_HAMILTON[i, j, k]``: the sign with which ``a_i b_j`` enters component k of ``a ⊗ b``."""
+for _i, _j, _k, _sign in (
+    (0, 0, 0, 1), (1, 1, 0, -1), (2, 2, 0, -1), (3, 3, 0, -1),
+    (0, 1, 1, 1), (1, 0, 1, 1), (2, 3, 1, 1), (3, 2, 1, -1),
+    (0, 2, 2, 1), (1, 3, 2, -1), (2, 0, 2, 1), (3, 1, 2, 1),
+    (0, 3, 3, 1), (1, 2, 3, 1), (2, 1, 3, -1), (3, 0, 3, 1),
+):  # fmt: skip
+    _HAMILTON[_i, _j, _k] = _sign
+
+
 def _qmul(a: F64, b: F64) -> F64:
-    """Hamilton products ``a ⊗ b`` of (w, x, y, z) quaternions, shapes broadcast to (..., 4).
+    """Hamilton products ``a ⊗ b`` of (w, x, y, z) quaternions, (N, 4) with (N, 4) or (4,),
+    or (4,) with (4,): as bilinear forms with :data:`_HAMILTON` (two array operations instead
+    of thirty).
 
     A hot-path twin of :func:`roft_sim.geometry.quat_multiply` (tested equal)."""
-    aw, ax, ay, az = a[..., 0], a[..., 1], a[..., 2], a[..., 3]
-    bw, bx, by, bz = b[..., 0], b[..., 1], b[..., 2], b[..., 3]
-    return np.stack(
-        [
-            aw * bw - ax * bx - ay * by - az * bz,
-            aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-        ],
-        axis=-1,
-    )
+    if b.ndim == 1:  # a ⊗ b = a @ M(b), M(b)[i, k] = sum_j b_j H[i, j, k]
+        out: F64 = a @ np.einsum("j,ijk->ik", b, _HAMILTON)
+        return out
+    outer = (a[..., :, None] * b[..., None, :]).reshape(a.shape[:-1] + (16,))
+    products: F64 = outer @ _HAMILTON.reshape(16, 4)
+    return products
 
 
 def _qexp(r: F64) -> F64:
