@@ -967,10 +967,8 @@ class VelocityKF:
         self.x_frame = m_ls.copy()
 
     def correct_with_rows(self, rows: _Rows, t_s: float, dt_s: float) -> None:
-        """One predict/correct of the constant-acceleration state with the weighted rows of
-        the interval (its own, or those the constant model of ``auto`` weighed: the rows'
-        weights are robust statistics of the flow, the same for either prior to first
-        order, and the pixels' least-squares twist they give is then the constant model's).
+        """One predict/correct of the constant-acceleration state with the interval's rows,
+        weighed about this model's own prediction of the interval mean.
 
         Predicts ``X`` from its time to ``t_s`` (``F = [[I, h I], [0, I]]``, white jerk
         ``Q = q [[h^3/3, h^2/2], [h^2/2, h]]`` per component). The flow over ``(t_s - dt_s, t_s]``
