@@ -310,20 +310,24 @@ def _depth_rate_weights(
     each time dropping the rows beyond ``depth_rate_inlier_sigmas`` of their standard
     deviation."""
     innovation = rows.dz_m - rows.J @ x_prior
-    A = rows.J[:, 2:5]
+    A = np.ascontiguousarray(rows.J[:, 2:5])
     spread = (rows.slope_m_per_px * flow_sigma_px) ** 2
-    keep = np.ones(innovation.shape[0], dtype=bool)
+    keep: NDArray[np.bool_] | None = None  # None: every row
     sigma = config.depth_rate_sigma_min_m
     variance = sigma**2 + spread
     for _ in range(2):
-        if np.count_nonzero(keep) < _DEPTH_RATE_MIN_ROWS:
+        if keep is None:
+            fit = _weighted_fit(A, innovation, 1.0 / variance)
+        elif np.count_nonzero(keep) < _DEPTH_RATE_MIN_ROWS:
             return innovation, np.zeros_like(innovation)
-        fit = _weighted_fit(A[keep], innovation[keep], 1.0 / variance[keep])
-        residual = innovation - A @ fit
-        sigma = max(config.depth_rate_sigma_min_m, MAD_TO_SIGMA * median(np.abs(residual[keep])))
+        else:
+            fit = _weighted_fit(A[keep], innovation[keep], 1.0 / variance[keep])
+        distance = np.abs(innovation - A @ fit)
+        kept = distance if keep is None else distance[keep]
+        sigma = max(config.depth_rate_sigma_min_m, MAD_TO_SIGMA * median(kept))
         variance = sigma**2 + spread
-        keep = np.abs(residual) <= config.depth_rate_inlier_sigmas * np.sqrt(variance)
-    weight = keep / variance
+        keep = distance <= config.depth_rate_inlier_sigmas * np.sqrt(variance)
+    weight = np.asarray(keep, dtype=np.float64) / variance
     if rows.cell_weight is not None:
         weight = weight * rows.cell_weight
     return innovation, weight
