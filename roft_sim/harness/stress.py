@@ -372,8 +372,9 @@ class Verdict:
     """What the replicates are, e.g. ``2 sequences x 1 flow x 3 seeds``."""
     seeds_needed: int | None = None
     """Seeds that would detect a :data:`DETECTABLE_ADD_AUC_POINTS`-point ADD-AUC difference with
-    80 % power in every comparison (from the largest paired standard deviation); None when it
-    could not be estimated (fewer than 2 pairs)."""
+    80 % power in every comparison (from the largest paired standard deviation, taken at its
+    upper 80 % confidence bound: :func:`~roft_sim.metrics.statistics.replicates_needed`); None
+    when it could not be estimated (fewer than 2 pairs)."""
     paired_sd: float = math.nan
     """That largest paired standard deviation of the ADD-AUC [points]."""
 
@@ -558,14 +559,15 @@ def _verdicts(
             continue
         sds = [p.comparisons["add_auc_pct"].sd for p in sets]
         sd = max(sds) if sds and all(math.isfinite(x) for x in sds) else math.nan
-        needed = replicates_needed(sd, DETECTABLE_ADD_AUC_POINTS)
+        pairs = min((p.pairs for p in sets), default=0)
+        needed = replicates_needed(sd, DETECTABLE_ADD_AUC_POINTS, pilot_pairs=pairs)
         per_seed = len({(k[0], k[1]) for k in keys}) or 1
         verdicts[split] = Verdict(
             split=split,
             inputs=inputs,
             wins=wins,
             fails=fails,
-            pairs=min((p.pairs for p in sets), default=0),
+            pairs=pairs,
             design=_design(sorted(keys)),
             seeds_needed=None if needed is None else -(-needed // per_seed),
             paired_sd=sd,

@@ -12,7 +12,7 @@ Definitions and the reasons for each choice: docs/statistics.md.
   mean difference and a verdict word (:data:`BETTER`, :data:`WORSE`, :data:`NO_DIFFERENCE`) that
   knows each metric's direction (:data:`METRIC_DIRECTIONS`).
 - :func:`replicates_needed`: how many replicates detect a difference with 80 % power, from the
-  paired standard deviation.
+  paired standard deviation (of a pilot: its upper 80 % confidence bound).
 - :func:`politis_white_block_length`, :func:`moving_block_indices`,
   :func:`block_bootstrap_interval`: a moving-block bootstrap for per-frame series, whose
   frames are correlated; the block length is the Politis-White automatic choice.
@@ -48,6 +48,7 @@ __all__ = [
     "paired_comparison",
     "verdict_word",
     "replicates_needed",
+    "PILOT_SD_CONFIDENCE",
     "bootstrap_percentile_interval",
     "politis_white_block_length",
     "moving_block_indices",
@@ -255,10 +256,15 @@ def paired_comparison(
     )
 
 
+PILOT_SD_CONFIDENCE = 0.8
+"""Upper confidence level of a pilot's standard deviation used by :func:`replicates_needed`."""
+
+
 def replicates_needed(
     paired_sd: float,
     difference: float,
     *,
+    pilot_pairs: int | None = None,
     confidence: float = CONFIDENCE,
     power: float = 0.8,
     max_n: int = 10_000,
@@ -266,10 +272,30 @@ def replicates_needed(
     """The fewest paired replicates whose interval excludes 0 with probability ``power`` when
     the true mean difference is ``difference`` and the paired standard deviation ``paired_sd``:
     the smallest n >= 2 with ``sqrt(n) |difference| / sd >= t_(1+c)/2,n-1 + t_power,n-1`` (the
-    paired t test's power, noncentral t approximated). None when ``paired_sd`` is not finite or
-    more than ``max_n`` would be needed; 2 when ``paired_sd`` is 0."""
+    paired t test's power, noncentral t approximated).
+
+    Args:
+        paired_sd: standard deviation of the paired differences.
+        difference: the true difference to detect (same unit).
+        pilot_pairs: the pairs ``paired_sd`` was estimated from: the sd is then raised to its
+            upper :data:`PILOT_SD_CONFIDENCE` confidence bound, ``sd sqrt((m-1) /
+            chi2_0.2,m-1)`` (Browne 1995), so that the recommendation reaches ``power`` in at
+            least four pilots of five; None = ``paired_sd`` is known.
+        confidence: confidence level of the intervals.
+        power: probability of finding the difference.
+        max_n: give up above this.
+
+    Returns:
+        The replicates; None when ``paired_sd`` is not finite, ``pilot_pairs`` < 2, or more
+        than ``max_n`` would be needed; 2 when ``paired_sd`` is 0.
+    """
     if not math.isfinite(paired_sd) or paired_sd < 0 or not difference:
         return None
+    if pilot_pairs is not None:
+        if pilot_pairs < 2:
+            return None
+        df = pilot_pairs - 1
+        paired_sd *= math.sqrt(df / float(stats.chi2.ppf(1.0 - PILOT_SD_CONFIDENCE, df)))
     if paired_sd == 0:
         return 2
     effect = abs(difference) / paired_sd
