@@ -268,7 +268,10 @@ def _pair(a: ComparedRun, b: ComparedRun) -> _Paired:
                 target.setdefault(key, []).append(values)
     if not names:
         raise ConfigError(f"runs {str(a.folder)!r} and {str(b.folder)!r} share no scored frame")
-    fast = None if any(f is None for f in fast_parts) else np.concatenate(fast_parts)  # type: ignore[arg-type]
+    known = [f for f in fast_parts if f is not None]
+    fast: NDArray[np.bool_] | None = (
+        np.concatenate(known) if len(known) == len(fast_parts) else None
+    )
     return _Paired(
         names=tuple(names),
         lengths=tuple(lengths),

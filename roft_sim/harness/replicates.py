@@ -63,8 +63,8 @@ def _fingerprint(*scalars: Mapping[str, float]) -> tuple[float, ...]:
 
 
 def distinct_replicates(
-    keyed: Mapping[tuple[Hashable, ...], Mapping[str, float]],
-) -> dict[tuple[Hashable, ...], Mapping[str, float]]:
+    keyed: Mapping[Any, Mapping[str, float]],
+) -> dict[Any, Mapping[str, float]]:
     """``keyed`` (cell key ``(sequence, seed, ...)`` -> scalars) without the cells that repeat
     another cell of the same sequence exactly: a seed that changes nothing (deterministic
     faults and tracker) is no new replicate, and counting it would narrow the interval."""
@@ -127,8 +127,8 @@ class PairedSet:
 def paired_set(
     a_label: str,
     b_label: str,
-    a: Mapping[tuple[Hashable, ...], Mapping[str, float]],
-    b: Mapping[tuple[Hashable, ...], Mapping[str, float]],
+    a: Mapping[Any, Mapping[str, float]],
+    b: Mapping[Any, Mapping[str, float]],
     key: Hashable,
     metrics: Sequence[str] = REPLICATE_METRICS,
 ) -> PairedSet:

@@ -603,9 +603,9 @@ def score_stress(
         entry = (m, pose, vel)
         parts.setdefault(("split", split, cell.label, cell.fault_label), []).append(entry)
         cell_key = (cell.sequence_name, cell.options.flow, cell.options.seed)
-        groups = ("split", "default") if cell.options.flow == default_flow else ("split",)
-        for group in groups:
-            by_cell = replicates[group].setdefault((split, cell.label, cell.fault_label), {})
+        judged = ("split", "default") if cell.options.flow == default_flow else ("split",)
+        for name in judged:
+            by_cell = replicates[name].setdefault((split, cell.label, cell.fault_label), {})
             by_cell[cell_key] = replicate_scalars(m)
         if cell.options.flow == default_flow:
             parts.setdefault(("default", split, cell.label, cell.fault_label), []).append(entry)
