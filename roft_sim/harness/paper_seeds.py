@@ -28,6 +28,7 @@ from roft_sim.harness.detector_draws import redraw_set
 from roft_sim.harness.replicates import stable_rng
 from roft_sim.metrics.statistics import (
     INTERVAL_METHOD,
+    METRIC_RANGES,
     Interval,
     bootstrap_percentile_interval,
     mean_interval,
@@ -114,7 +115,9 @@ def noise_tables(
             for method, key, _ in present:
                 ref = paper.table1[method][metric].get(entry)
                 sim = mean_interval(
-                    _values(by_seed, key, entry, metric), rng=stable_rng((key, entry, metric))
+                    _values(by_seed, key, entry, metric),
+                    rng=stable_rng((key, entry, metric)),
+                    bounds=METRIC_RANGES[metric],
                 )
                 row[f"{key}:paper"] = ref
                 row[f"{key}:sim"] = sim.text(".2f")

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 import zlib
-from collections.abc import Hashable, Mapping, Sequence
+from collections.abc import Callable, Hashable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -21,6 +21,7 @@ import numpy as np
 from roft_sim.metrics import SequenceMetrics
 from roft_sim.metrics.statistics import (
     METRIC_DIRECTIONS,
+    METRIC_RANGES,
     Interval,
     PairedComparison,
     mean_interval,
@@ -58,24 +59,37 @@ def replicate_scalars(metrics: SequenceMetrics | Mapping[str, Any]) -> dict[str,
     return out
 
 
-def _fingerprint(*scalars: Mapping[str, float]) -> tuple[float, ...]:
-    return tuple(float(np.float64(s.get(m, math.nan))) for s in scalars for m in REPLICATE_METRICS)
+def _fingerprint(*scalars: Mapping[str, float]) -> tuple[float | None, ...]:
+    """The metric values of ``scalars``, NaN and missing as None (so that equal cells match)."""
+    values = (s.get(m, math.nan) for s in scalars for m in REPLICATE_METRICS)
+    return tuple(None if math.isnan(v) else float(v) for v in values)
+
+
+def _distinct_keys(
+    keys: Sequence[Any], mark: Callable[[Any], tuple[float | None, ...]]
+) -> list[Any]:
+    """``keys`` (``(sequence, ...)``) with each sequence whose keys all have the same ``mark``
+    reduced to its first key."""
+    groups: dict[Hashable, list[Any]] = {}
+    for key in keys:
+        groups.setdefault(key[0], []).append(key)
+    out = []
+    for members in groups.values():
+        same = len({mark(k) for k in members}) == 1
+        out += members[:1] if same else members
+    return out
 
 
 def distinct_replicates(
     keyed: Mapping[Any, Mapping[str, float]],
 ) -> dict[Any, Mapping[str, float]]:
-    """``keyed`` (cell key ``(sequence, seed, ...)`` -> scalars) without the cells that repeat
-    another cell of the same sequence exactly: a seed that changes nothing (deterministic
-    faults and tracker) is no new replicate, and counting it would narrow the interval."""
-    seen: set[tuple[Hashable, tuple[float, ...]]] = set()
-    out = {}
-    for key, scalars in keyed.items():
-        mark = (key[0], _fingerprint(scalars))
-        if mark not in seen:
-            seen.add(mark)
-            out[key] = scalars
-    return out
+    """``keyed`` (cell key ``(sequence, seed, ...)`` -> scalars) with each sequence whose cells
+    all have the same scalars counted once: when no seed changed anything (deterministic faults,
+    flow and tracker) the seeds are no replicates, and counting them would narrow the interval.
+    A sequence whose seeds differ at all keeps every cell, coincident ones included (they are
+    draws of the same law)."""
+    keys = _distinct_keys(list(keyed), lambda k: _fingerprint(keyed[k]))
+    return {k: keyed[k] for k in keys}
 
 
 def stable_rng(key: Hashable) -> np.random.Generator:
@@ -89,9 +103,18 @@ def replicate_intervals(
     key: Hashable,
     metrics: Sequence[str] = REPLICATE_METRICS,
 ) -> dict[str, Interval]:
-    """Per metric, the mean over ``replicates`` with its interval (rng from ``key``)."""
+    """Per metric, the mean over ``replicates`` with its interval, cut to the metric's range
+    (rng from ``key``)."""
     rng = stable_rng(key)
-    return {m: mean_interval([r.get(m, math.nan) for r in replicates], rng=rng) for m in metrics}
+    unbounded = (-math.inf, math.inf)
+    return {
+        m: mean_interval(
+            [r.get(m, math.nan) for r in replicates],
+            rng=rng,
+            bounds=METRIC_RANGES.get(m, unbounded),
+        )
+        for m in metrics
+    }
 
 
 def interval_fields(intervals: Mapping[str, Interval], fmt: str = ".2f") -> dict[str, Any]:
@@ -134,16 +157,8 @@ def paired_set(
 ) -> PairedSet:
     """Pairs the replicates of A and B by their cell keys ``(sequence, seed, ...)`` and
     compares each metric (rng from ``key``); cells that only one of them has are left out, and
-    so is a pair that repeats another pair of the same sequence exactly (see
-    :func:`distinct_replicates`)."""
-    seen: set[tuple[Hashable, tuple[float, ...]]] = set()
-    shared = []
-    for k in a:
-        if k in b:
-            mark = (k[0], _fingerprint(a[k], b[k]))
-            if mark not in seen:
-                seen.add(mark)
-                shared.append(k)
+    a sequence whose pairs are all alike counts once (see :func:`distinct_replicates`)."""
+    shared = _distinct_keys([k for k in a if k in b], lambda k: _fingerprint(a[k], b[k]))
     rng = stable_rng(key)
     comparisons = {
         m: paired_comparison(

@@ -38,6 +38,7 @@ __all__ = [
     "BLOCK_METHOD",
     "Direction",
     "METRIC_DIRECTIONS",
+    "METRIC_RANGES",
     "BETTER",
     "WORSE",
     "NO_DIFFERENCE",
@@ -74,6 +75,16 @@ METRIC_DIRECTIONS: dict[str, Direction] = {
     "rmse_w_dps": "lower",
 }
 """Which way each metric is better: ADD-AUC higher, the RMSEs (e_t, e_a, e_v, e_w) lower."""
+
+METRIC_RANGES: dict[str, tuple[float, float]] = {
+    "add_auc_pct": (0.0, 100.0),
+    "adds_auc_pct": (0.0, 100.0),
+    "rmse_t_cm": (0.0, math.inf),
+    "rmse_a_deg": (0.0, math.inf),
+    "rmse_v_cmps": (0.0, math.inf),
+    "rmse_w_dps": (0.0, math.inf),
+}
+"""The values each metric can take: an interval of its mean is cut to them."""
 
 BETTER = "better"
 WORSE = "worse"
@@ -174,8 +185,11 @@ def mean_interval(
     rng: np.random.Generator,
     confidence: float = CONFIDENCE,
     n_resamples: int = DEFAULT_RESAMPLES,
+    bounds: tuple[float, float] = (-math.inf, math.inf),
 ) -> Interval:
-    """The mean of replicate ``values`` (n,) with its interval (:func:`mean_intervals`).
+    """The mean of replicate ``values`` (n,) with its interval (:func:`mean_intervals`), cut to
+    ``bounds`` (the values the quantity can take, e.g. :data:`METRIC_RANGES`: with few
+    replicates the t floor may reach past them).
 
     Non-finite values are left out (a metric a replicate could not compute); none left gives a
     NaN estimate.
@@ -187,10 +201,13 @@ def mean_interval(
     mean, low, high = mean_intervals(
         x[None, :], rng=rng, confidence=confidence, n_resamples=n_resamples
     )
+    low0, high0 = float(low[0]), float(high[0])
+    if math.isfinite(low0):
+        low0, high0 = max(low0, bounds[0]), min(high0, bounds[1])
     return Interval(
         estimate=float(mean[0]),
-        low=float(low[0]),
-        high=float(high[0]),
+        low=low0,
+        high=high0,
         n=int(x.size),
         confidence=confidence,
     )
