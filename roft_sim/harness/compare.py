@@ -1,7 +1,8 @@
 """``roft-sim compare``: two runs of ``roft-sim run`` on the same data, frame by frame.
 
 Each run folder holds ``run.json`` and, per sequence, ``frame_errors.npz`` (the per-frame errors
-behind the metrics) and ``deliveries.npz`` (when each pose arrived). The two runs are paired on
+behind the metrics) and ``deliveries.npz`` (when each pose arrived); a sweep's cell folder
+(``cells/<id>``, with ``cell.json``) is one run of one sequence. The two runs are paired on
 the frames both scored; per metric the difference A - B gets a moving-block bootstrap interval
 (frames are correlated: :mod:`roft_sim.metrics.statistics`), and a table says where the
 position and rotation error differences concentrate (docs/statistics.md):
@@ -34,6 +35,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from roft_sim.errors import ConfigError, DatasetFormatError
+from roft_sim.harness.cells import CELL_FILE
 from roft_sim.harness.outputs import (
     DELIVERIES_FILE,
     FRAME_ERRORS_FILE,
@@ -100,34 +102,58 @@ class ComparedRun:
     """Per sequence, the sorted frames at which a pose arrived."""
 
 
+def _cell_as_run(folder: Path) -> dict[str, Any]:
+    """A sweep cell's ``cell.json`` in the shape of ``run.json`` (its one sequence's files lie
+    in the cell folder itself)."""
+    from roft_sim.datasets import open_sequence
+
+    cell = read_json(folder / CELL_FILE)
+    try:
+        sequence = open_sequence(cell["sequence_path"])
+        frames, fps = len(sequence), int(sequence.fps)
+    except (DatasetFormatError, OSError):
+        frames = fps = None  # compared by path only
+    record = {
+        "name": cell["sequence"],
+        "path": cell["sequence_path"],
+        "object": cell.get("object"),
+        "frames": frames,
+        "fps": fps,
+        "folder": ".",
+    }
+    return {"tracker": {"name": cell["label"]}, "options": cell["options"], "sequences": [record]}
+
+
 def load_compared_run(folder: str | Path) -> ComparedRun:
-    """Reads a ``roft-sim run`` folder.
+    """Reads a ``roft-sim run`` folder, or a cell folder of a sweep (``cells/<id>``).
 
     Raises:
-        ConfigError: not a run folder, or a sequence without per-frame errors (no ground
-            truth).
+        ConfigError: not a run or cell folder, or a sequence without per-frame errors (no
+            ground truth).
     """
     folder = Path(folder)
-    if not (folder / RUN_FILE).is_file():
+    if not ((folder / RUN_FILE).is_file() or (folder / CELL_FILE).is_file()):
         raise ConfigError(
             f"{str(folder)!r} is not a run folder (no {RUN_FILE}); give folders written by "
-            "roft-sim run, e.g. out/demo/runs/roft"
+            "roft-sim run (e.g. out/demo/runs/roft) or sweep cells (SWEEP/cells/<id>)"
         )
     try:
-        info = read_json(folder / RUN_FILE)
+        info = (
+            read_json(folder / RUN_FILE) if (folder / RUN_FILE).is_file() else _cell_as_run(folder)
+        )
     except DatasetFormatError as e:
         raise ConfigError(str(e)) from None
     sequences = {s["name"]: s for s in info.get("sequences", [])}
     metrics, arrivals = {}, {}
-    for name in sequences:
-        path = folder / name / FRAME_ERRORS_FILE
+    for name, record in sequences.items():
+        path = folder / record.get("folder", name) / FRAME_ERRORS_FILE
         if not path.is_file():
             raise ConfigError(
                 f"run {str(folder)!r}: sequence {name!r} has no {FRAME_ERRORS_FILE} (it has no "
                 "ground truth, so there are no errors to compare)"
             )
         metrics[name] = load_frame_errors(path)
-        deliveries = folder / name / DELIVERIES_FILE
+        deliveries = folder / record.get("folder", name) / DELIVERIES_FILE
         arrivals[name] = (
             np.unique(load_deliveries(deliveries)["pose"].arrival_k)
             if deliveries.is_file()

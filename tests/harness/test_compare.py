@@ -113,3 +113,21 @@ def test_the_verdict_is_read_from_run_a(runs) -> None:
         if m.verdict == BETTER:
             assert f.verdict == "worse"
     assert np.isfinite([m.a for m in result.metrics[:3]]).all()
+
+
+def test_two_cells_of_a_sweep_compare_like_runs(tmp_path) -> None:
+    from roft_sim.harness.sweep import SweepConfig, run_sweep
+
+    dataset = write_box_dataset(tmp_path / "data", names=("box_a",), n_frames=24)
+    config = SweepConfig(
+        datasets=(dataset,),
+        trackers=("detector-hold", "naive-delay"),
+        faults=("chaos",),
+        flow="none",
+        include_rgb=False,
+    )
+    cells = run_sweep(config, tmp_path / "sweep", plots=False).cells
+    folders = [tmp_path / "sweep" / "cells" / c.cell_id for c in cells]
+    result = compare_runs(folders[1], folders[0], n_resamples=200)
+    assert (result.run_a.tracker, result.run_b.tracker) == ("naive-delay", "detector-hold")
+    assert result.frames > 0 and result.run_a.faults == "chaos"
