@@ -63,6 +63,17 @@ def write_random_mixes(folder: Path, seeds: range) -> tuple[str, ...]:
     return tuple(paths)
 
 
+def _seeds(parser: argparse.ArgumentParser, text: str) -> tuple[int, ...]:
+    """``--seeds S1,S2``: distinct integers >= 0 (else a usage error)."""
+    try:
+        seeds = tuple(int(x) for x in text.split(",") if x.strip())
+    except ValueError:
+        parser.error(f"--seeds must be comma-separated integers, got {text!r}")
+    if not seeds or min(seeds) < 0 or len(set(seeds)) != len(seeds):
+        parser.error(f"--seeds must list distinct integers >= 0, got {text!r}")
+    return seeds
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     sizes = parser.add_mutually_exclusive_group()
@@ -91,25 +102,14 @@ def main(argv: list[str] | None = None) -> int:
         "--mix-seed", type=int, default=1000, help="seed of the first random mix (default 1000)"
     )
     parser.add_argument(
-        "--seeds",
-        metavar="S1,S2",
-        help="run seeds instead of the size's (more seeds: more replicates for the paired "
-        "verdicts; the report's 'Seeds needed' section says how many a 2-point ADD-AUC "
-        "difference needs)",
+        "--seeds", metavar="S1,S2", help="run seeds instead of the size's (more replicates)"
     )
     args = parser.parse_args(argv)
     if args.random_mixes is not None and args.random_mixes < 1:
         parser.error(f"--random-mixes must be >= 1, got {args.random_mixes}")
     if args.mix_seed < 0:
         parser.error(f"--mix-seed must be >= 0, got {args.mix_seed}")
-    seeds = None
-    if args.seeds is not None:
-        try:
-            seeds = tuple(int(x) for x in args.seeds.split(",") if x.strip())
-        except ValueError:
-            parser.error(f"--seeds must be comma-separated integers, got {args.seeds!r}")
-        if not seeds or min(seeds) < 0 or len(set(seeds)) != len(seeds):
-            parser.error(f"--seeds must list distinct integers >= 0, got {args.seeds!r}")
+    seeds = None if args.seeds is None else _seeds(parser, args.seeds)
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     select_gl_backend(os.environ)
     config_path = args.config or (
