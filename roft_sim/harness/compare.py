@@ -108,11 +108,13 @@ def _cell_as_run(folder: Path) -> dict[str, Any]:
     from roft_sim.datasets import open_sequence
 
     cell = read_json(folder / CELL_FILE)
+    frames: int | None = None  # None: compared by path only
+    fps: int | None = None
     try:
         sequence = open_sequence(cell["sequence_path"])
         frames, fps = len(sequence), int(sequence.fps)
     except (DatasetFormatError, OSError):
-        frames = fps = None  # compared by path only
+        pass
     record = {
         "name": cell["sequence"],
         "path": cell["sequence_path"],

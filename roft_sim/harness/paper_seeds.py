@@ -16,6 +16,7 @@ known and not counted, so this is the least noise there is. docs/statistics.md.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from pathlib import Path
@@ -160,7 +161,7 @@ def tau_intervals(
     for configuration in configurations:
         for metric, _ in _METRICS:
             interval = bootstrap_percentile_interval(
-                lambda index, c=configuration, m=metric: tau(c, m, index),
+                functools.partial(tau, configuration, metric),
                 len(seeds),
                 rng=stable_rng(("tau", configuration, metric)),
             )
