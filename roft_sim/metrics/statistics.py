@@ -316,11 +316,10 @@ def replicates_needed(
     if paired_sd == 0:
         return 2
     effect = abs(difference) / paired_sd
-    for n in range(2, max_n + 1):
-        need = stats.t.ppf(0.5 + confidence / 2, n - 1) + stats.t.ppf(power, n - 1)
-        if math.sqrt(n) * effect >= need:
-            return n
-    return None
+    n = np.arange(2, max_n + 1)
+    need = stats.t.ppf(0.5 + confidence / 2, n - 1) + stats.t.ppf(power, n - 1)
+    enough = np.flatnonzero(np.sqrt(n) * effect >= need)
+    return int(n[enough[0]]) if enough.size else None
 
 
 def bootstrap_percentile_interval(
