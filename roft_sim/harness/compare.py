@@ -577,7 +577,7 @@ def _plot_differences(a: ComparedRun, b: ComparedRun, paired: _Paired, out: Path
             columns=1,
             integer_x=True,
             events_x=a.arrivals[name],
-            panel_in=(11.2, 3.0),
+            panel_in=(9.0, 2.6),
         )
         written.append(save_figure(figure, out / f"difference_{name}.png"))
     return written
