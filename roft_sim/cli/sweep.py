@@ -38,7 +38,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "swept delay or dropout rate), sequences and seeds as independent cells in parallel "
         "processes. Finished cells are kept and never redone (--resume continues an interrupted "
         "sweep). Writes summary.{md,csv,tex} (each metric's mean over the sequence x seed "
-        "replicates with its 95 %% interval), paired.csv (every tracker against the first on the "
+        "replicates with its 95 % interval), paired.csv (every tracker against the first on the "
         "same cells), cells.csv, timing.csv and plots/ (error vs the parameter, per-frame error "
         "traces with pose arrivals). See docs/running.md and docs/statistics.md.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
