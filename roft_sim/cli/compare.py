@@ -25,8 +25,8 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     parser = subparsers.add_parser(
         "compare",
         help="compare two runs on the same data frame by frame, with confidence intervals",
-        description="Pair two roft-sim run folders on the frames both scored: each metric's "
-        "difference A - B with a 95 %% moving-block bootstrap interval and a verdict (better / "
+        description="Pair two roft-sim run folders (or two sweep cells) on the frames both scored: each metric's "
+        "difference A - B with a 95 % moving-block bootstrap interval and a verdict (better / "
         "worse / no detectable difference), a plot per sequence of the per-frame error "
         "difference with the pose arrivals, and where the difference concentrates (after a "
         "pose arrival, in no-detection stretches, during fast motion). Writes compare.md, "
