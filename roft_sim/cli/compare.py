@@ -25,12 +25,12 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     parser = subparsers.add_parser(
         "compare",
         help="compare two runs on the same data frame by frame, with confidence intervals",
-        description="Pair two roft-sim run folders (or two sweep cells) on the frames both scored: each metric's "
-        "difference A - B with a 95 % moving-block bootstrap interval and a verdict (better / "
-        "worse / no detectable difference), a plot per sequence of the per-frame error "
-        "difference with the pose arrivals, and where the difference concentrates (after a "
-        "pose arrival, in no-detection stretches, during fast motion). Writes compare.md, "
-        "compare.json and the plots into --out. See docs/statistics.md.",
+        description="Pair two roft-sim run folders (or two sweep cells) on the frames both "
+        "scored: each metric's difference A - B with a 95 % moving-block bootstrap interval "
+        "and a verdict (better / worse / no detectable difference), a plot per sequence of the "
+        "per-frame error difference with the pose arrivals, and where the difference "
+        "concentrates (after a pose arrival, in no-detection stretches, during fast motion). "
+        "Writes compare.md, compare.json and the plots into --out. See docs/statistics.md.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="example:\n"
         "  roft-sim compare out/demo/runs/roft out/demo/runs/detector-hold --out out/compare\n"
