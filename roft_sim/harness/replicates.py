@@ -68,11 +68,11 @@ def _fingerprint(*scalars: Mapping[str, float]) -> tuple[float | None, ...]:
 def _distinct_keys(
     keys: Sequence[Any], mark: Callable[[Any], tuple[float | None, ...]]
 ) -> list[Any]:
-    """``keys`` (``(sequence, ...)``) with each sequence whose keys all have the same ``mark``
-    reduced to its first key."""
+    """``keys`` (``(sequence, ..., seed)``: the seed last) with each group of keys that differ
+    only in the seed and all have the same ``mark`` reduced to its first key."""
     groups: dict[Hashable, list[Any]] = {}
     for key in keys:
-        groups.setdefault(key[0], []).append(key)
+        groups.setdefault(tuple(key[:-1]), []).append(key)
     out = []
     for members in groups.values():
         same = len({mark(k) for k in members}) == 1
@@ -83,11 +83,11 @@ def _distinct_keys(
 def distinct_replicates(
     keyed: Mapping[Any, Mapping[str, float]],
 ) -> dict[Any, Mapping[str, float]]:
-    """``keyed`` (cell key ``(sequence, seed, ...)`` -> scalars) with each sequence whose cells
-    all have the same scalars counted once: when no seed changed anything (deterministic faults,
-    flow and tracker) the seeds are no replicates, and counting them would narrow the interval.
-    A sequence whose seeds differ at all keeps every cell, coincident ones included (they are
-    draws of the same law)."""
+    """``keyed`` (cell key ``(sequence, ..., seed)``, the seed last -> scalars) with the cells
+    of a sequence (and flow, ...) that differ only in the seed counted once when they all have
+    the same scalars: when no seed changed anything (deterministic faults, flow and tracker) the
+    seeds are no replicates, and counting them would narrow the interval. Where the seeds
+    differ at all, every cell counts, coincident ones included (they are draws of the law)."""
     keys = _distinct_keys(list(keyed), lambda k: _fingerprint(keyed[k]))
     return {k: keyed[k] for k in keys}
 
@@ -155,7 +155,7 @@ def paired_set(
     key: Hashable,
     metrics: Sequence[str] = REPLICATE_METRICS,
 ) -> PairedSet:
-    """Pairs the replicates of A and B by their cell keys ``(sequence, seed, ...)`` and
+    """Pairs the replicates of A and B by their cell keys ``(sequence, ..., seed)`` and
     compares each metric (rng from ``key``); cells that only one of them has are left out, and
     a sequence whose pairs are all alike counts once (see :func:`distinct_replicates`)."""
     shared = _distinct_keys([k for k in a if k in b], lambda k: _fingerprint(a[k], b[k]))

@@ -27,6 +27,22 @@ def test_a_sequence_whose_seeds_change_nothing_counts_once() -> None:
     assert pairs.pairs == 4 and pairs.comparisons["add_auc_pct"].difference.estimate == 0.0
 
 
+def test_seeds_count_once_per_sequence_and_flow_when_they_change_nothing() -> None:
+    """Stress keys (sequence, flow, seed): the stored flow's seeds are copies, the noisy
+    flow's seeds differ; only the copies collapse."""
+    keyed = {
+        ("s", "stored", 0): {"add_auc_pct": 70.0},
+        ("s", "stored", 1): {"add_auc_pct": 70.0},
+        ("s", "noisy", 0): {"add_auc_pct": 60.0},
+        ("s", "noisy", 1): {"add_auc_pct": 62.0},
+    }
+    assert list(distinct_replicates(keyed)) == [
+        ("s", "stored", 0),
+        ("s", "noisy", 0),
+        ("s", "noisy", 1),
+    ]
+
+
 def test_metric_intervals_stay_inside_the_metrics_range() -> None:
     """Two replicates: Student's t (1 degree of freedom) reaches far past 0 and 100."""
     got = replicate_intervals(
