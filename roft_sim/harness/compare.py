@@ -468,6 +468,18 @@ def _categories(paired: _Paired, period: int | None) -> list[tuple[str, str, NDA
     return out
 
 
+def _masked_mean(d: F64, mask: NDArray[np.bool_]) -> Callable[[Index], F64]:
+    """The statistic "mean of ``d`` over the frames in ``mask``" on resampled frames (B, N)."""
+
+    def statistic(index: Index) -> F64:
+        w = mask[index] & np.isfinite(d[index])
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mean: F64 = np.where(w, d[index], 0.0).sum(axis=1) / w.sum(axis=1)
+        return mean
+
+    return statistic
+
+
 def _where_rows(
     paired: _Paired, period: int | None, rng: np.random.Generator, n_resamples: int
 ) -> list[WhereRow]:
@@ -477,21 +489,11 @@ def _where_rows(
     total = float(np.nansum(d_t))
     rows = []
     for category, definition, mask in _categories(paired, period):
-
-        def mean_on(d: F64, m: NDArray[np.bool_] = mask) -> Callable[[Index], F64]:
-            def statistic(index: Index) -> F64:
-                w = (m[index] & np.isfinite(d[index])).astype(np.float64)
-                with np.errstate(invalid="ignore", divide="ignore"):
-                    mean: F64 = np.nansum(np.where(w > 0, d[index], 0.0), axis=1) / w.sum(axis=1)
-                return mean
-
-            return statistic
-
         t = block_bootstrap_interval(
-            mean_on(d_t), paired.lengths, block, rng=rng, n_resamples=n_resamples
+            _masked_mean(d_t, mask), paired.lengths, block, rng=rng, n_resamples=n_resamples
         )
         a = block_bootstrap_interval(
-            mean_on(d_a), paired.lengths, block, rng=rng, n_resamples=n_resamples
+            _masked_mean(d_a, mask), paired.lengths, block, rng=rng, n_resamples=n_resamples
         )
         rows.append(
             WhereRow(
