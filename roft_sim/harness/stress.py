@@ -104,6 +104,9 @@ VERDICT_METRICS: dict[str, str] = {
 DETECTABLE_ADD_AUC_POINTS = 2.0
 """The ADD-AUC difference [points] the seed recommendation of a verdict line is sized for."""
 
+MAX_REPLICATES = 10_000
+"""Above this many replicates the seed recommendation gives up."""
+
 DEFAULT_FLOW = f"stored:{PREFERRED_FLOW_SET}"
 """The flow source of the default inputs (the stored NVOF-like set a plain ``roft-sim run``
 uses): the first verdict line of each split judges the cells with this flow only."""
@@ -398,10 +401,14 @@ class Verdict:
         """How many seeds a :data:`DETECTABLE_ADD_AUC_POINTS`-point difference needs."""
         head = f"{self.split.upper()}, {self.inputs}: seeds to detect a "
         head += f"{DETECTABLE_ADD_AUC_POINTS:g}-point ADD-AUC difference (80 % power): "
+        if self.pairs < 2 or not math.isfinite(self.paired_sd):
+            return head + "unknown (fewer than 2 paired replicates: run more seeds or sequences)"
+        sd = f"largest paired sd {self.paired_sd:.2f} points over {self.pairs} pairs"
         if self.seeds_needed is None:
-            return head + "unknown (fewer than 2 paired replicates: run more seeds)"
+            return head + f"more than {MAX_REPLICATES} replicates ({sd}; {self.design})"
         return head + (
-            f"{self.seeds_needed} (largest paired sd {self.paired_sd:.2f} points; {self.design})"
+            f"{self.seeds_needed} ({sd}; {self.design}); seeds add replicates only where they "
+            "change the draw (random faults or flow), otherwise add sequences"
         )
 
 
@@ -560,7 +567,9 @@ def _verdicts(
         sds = [p.comparisons["add_auc_pct"].sd for p in sets]
         sd = max(sds) if sds and all(math.isfinite(x) for x in sds) else math.nan
         pairs = min((p.pairs for p in sets), default=0)
-        needed = replicates_needed(sd, DETECTABLE_ADD_AUC_POINTS, pilot_pairs=pairs)
+        needed = replicates_needed(
+            sd, DETECTABLE_ADD_AUC_POINTS, pilot_pairs=pairs, max_n=MAX_REPLICATES
+        )
         per_seed = len({(k[0], k[1]) for k in keys}) or 1
         verdicts[split] = Verdict(
             split=split,
