@@ -59,6 +59,7 @@ __all__ = [
     "StressConfig",
     "StressResult",
     "Verdict",
+    "SeedAdvice",
     "shipped_stress_config",
     "shipped_holdout_config",
     "SPLITS",
@@ -373,13 +374,8 @@ class Verdict:
     """The fewest paired replicates any comparison of the line rests on."""
     design: str = ""
     """What the replicates are, e.g. ``2 sequences x 1 flow x 3 seeds``."""
-    seeds_needed: int | None = None
-    """Seeds that would detect a :data:`DETECTABLE_ADD_AUC_POINTS`-point ADD-AUC difference with
-    80 % power in every comparison (from the largest paired standard deviation, taken at its
-    upper 80 % confidence bound: :func:`~roft_sim.metrics.statistics.replicates_needed`); None
-    when it could not be estimated (fewer than 2 pairs)."""
-    paired_sd: float = math.nan
-    """That largest paired standard deviation of the ADD-AUC [points]."""
+    advice: tuple[SeedAdvice, ...] = ()
+    """Per preset, the seeds a :data:`DETECTABLE_ADD_AUC_POINTS`-point difference needs."""
 
     def line(self, subject: str, baselines: Sequence[str]) -> str:
         """The verdict sentence, with what it rests on and the seeds it would need."""
@@ -398,18 +394,41 @@ class Verdict:
         return text + ("; fails: " + "; ".join(self.fails) if self.fails else "")
 
     def recommendation(self) -> str:
-        """How many seeds a :data:`DETECTABLE_ADD_AUC_POINTS`-point difference needs."""
-        head = f"{self.split.upper()}, {self.inputs}: seeds to detect a "
+        """Per preset, how many seeds a :data:`DETECTABLE_ADD_AUC_POINTS`-point ADD-AUC
+        difference needs (80 % power, every baseline)."""
+        head = f"{self.split.upper()}, {self.inputs}: seeds for a "
         head += f"{DETECTABLE_ADD_AUC_POINTS:g}-point ADD-AUC difference (80 % power): "
+        return head + "; ".join(a.text() for a in self.advice)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class SeedAdvice:
+    """How many seeds one preset's comparisons need (:func:`_seed_advice`)."""
+
+    preset: str
+    """The preset's name."""
+    seeds: int | None
+    """Seeds that would find a :data:`DETECTABLE_ADD_AUC_POINTS`-point ADD-AUC difference with
+    80 % power against every baseline, from the largest paired standard deviation taken at its
+    upper 80 % confidence bound (:func:`~roft_sim.metrics.statistics.replicates_needed`); None:
+    more than :data:`MAX_REPLICATES` replicates, or not known."""
+    paired_sd: float
+    """That largest paired standard deviation [ADD-AUC points]; NaN with fewer than 2 pairs."""
+    pairs: int
+    """The fewest pairs it was measured on."""
+    seeds_matter: bool
+    """False when no seed changed the draw (each sequence counted once): more seeds cannot add
+    replicates, only more sequences can."""
+
+    def text(self) -> str:
+        """``paper: 12 (paired sd 3.10 over 6 pairs)``, or why there is no number."""
+        if not self.seeds_matter:
+            return f"{self.preset}: seeds change nothing here, add sequences"
         if self.pairs < 2 or not math.isfinite(self.paired_sd):
-            return head + "unknown (fewer than 2 paired replicates: run more seeds or sequences)"
-        sd = f"largest paired sd {self.paired_sd:.2f} points over {self.pairs} pairs"
-        if self.seeds_needed is None:
-            return head + f"more than {MAX_REPLICATES} replicates ({sd}; {self.design})"
-        return head + (
-            f"{self.seeds_needed} ({sd}; {self.design}); seeds add replicates only where they "
-            "change the draw (random faults or flow), otherwise add sequences"
-        )
+            return f"{self.preset}: unknown (fewer than 2 pairs)"
+        sd = f"paired sd {self.paired_sd:.2f} over {self.pairs} pairs"
+        count = f"more than {MAX_REPLICATES} replicates" if self.seeds is None else self.seeds
+        return f"{self.preset}: {count} ({sd})"
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -521,7 +540,8 @@ def _judge_preset(
 ) -> tuple[list[str], list[PairedSet]]:
     """What the subject loses under one preset (empty: a win), and the paired sets behind it."""
     own = replicates[(split, subject, preset)]
-    lost, sets = [], []
+    lost: list[str] = []
+    sets: list[PairedSet] = []
     for base in baselines:
         other = replicates.get((split, base, preset))
         if other is None:
@@ -533,6 +553,25 @@ def _judge_preset(
             if c.verdict != BETTER:
                 lost.append(f"{label} {c.difference.text('+.2f')} vs {base} ({c.verdict})")
     return lost, sets
+
+
+def _seed_advice(preset: str, sets: Sequence[PairedSet], keys: Sequence[CellKey]) -> SeedAdvice:
+    """The seeds one preset's comparisons need (see :class:`SeedAdvice`); ``keys`` are the
+    subject's cells under the preset."""
+    sds = [p.comparisons["add_auc_pct"].sd for p in sets]
+    sd = max(sds) if sds and all(math.isfinite(x) for x in sds) else math.nan
+    pairs = min((p.pairs for p in sets), default=0)
+    per_seed = len({k[:2] for k in keys}) or 1
+    needed = replicates_needed(
+        sd, DETECTABLE_ADD_AUC_POINTS, pilot_pairs=pairs, max_n=MAX_REPLICATES
+    )
+    return SeedAdvice(
+        preset=fault_spec_name(preset),
+        seeds=None if needed is None else -(-needed // per_seed),
+        paired_sd=sd,
+        pairs=pairs,
+        seeds_matter=len({k[2] for k in keys}) < 2 or pairs > per_seed,
+    )
 
 
 def _verdicts(
@@ -550,36 +589,30 @@ def _verdicts(
     :data:`DETECTABLE_ADD_AUC_POINTS`-point ADD-AUC difference needs."""
     verdicts = {}
     for split in splits:
-        wins, fails, sets = [], [], []
+        wins, fails, advice, pairs = [], [], [], []
         keys: set[CellKey] = set()
         for preset in presets:
             if (split, subject, preset) not in replicates:
                 continue
-            keys |= set(replicates[(split, subject, preset)])
-            lost, preset_sets = _judge_preset(replicates, split, preset, subject, baselines)
-            sets += preset_sets
+            own = sorted(replicates[(split, subject, preset)])
+            keys |= set(own)
+            lost, sets = _judge_preset(replicates, split, preset, subject, baselines)
+            advice.append(_seed_advice(preset, sets, own))
+            pairs += [p.pairs for p in sets]
             if lost:
                 fails.append(f"{fault_spec_name(preset)}: " + ", ".join(lost))
             else:
                 wins.append(fault_spec_name(preset))
         if not (wins or fails):
             continue
-        sds = [p.comparisons["add_auc_pct"].sd for p in sets]
-        sd = max(sds) if sds and all(math.isfinite(x) for x in sds) else math.nan
-        pairs = min((p.pairs for p in sets), default=0)
-        needed = replicates_needed(
-            sd, DETECTABLE_ADD_AUC_POINTS, pilot_pairs=pairs, max_n=MAX_REPLICATES
-        )
-        per_seed = len({(k[0], k[1]) for k in keys}) or 1
         verdicts[split] = Verdict(
             split=split,
             inputs=inputs,
             wins=wins,
             fails=fails,
-            pairs=pairs,
+            pairs=min(pairs, default=0),
             design=_design(sorted(keys)),
-            seeds_needed=None if needed is None else -(-needed // per_seed),
-            paired_sd=sd,
+            advice=tuple(advice),
         )
     return verdicts
 

@@ -249,7 +249,8 @@ def paired_comparison(
 ) -> PairedComparison:
     """Paired comparison of ``a`` (n,) and ``b`` (n,), the metric of A and B on the same n
     cells (same sequence, same fault draw), in the same order. Pairs where either is not
-    finite are left out.
+    finite are left out; the interval is cut to the differences the metric allows (ADD-AUC:
+    [-100, 100]).
 
     Raises:
         ValueError: different lengths, or a metric without a known direction.
@@ -262,7 +263,10 @@ def paired_comparison(
     if x.shape != y.shape:
         raise ValueError(f"paired values need equal lengths, got {x.size} and {y.size}")
     d = (x - y)[np.isfinite(x) & np.isfinite(y)]
-    difference = mean_interval(d, rng=rng, confidence=confidence, n_resamples=n_resamples)
+    lo, hi = METRIC_RANGES.get(metric, (-math.inf, math.inf))
+    difference = mean_interval(
+        d, rng=rng, confidence=confidence, n_resamples=n_resamples, bounds=(lo - hi, hi - lo)
+    )
     direction = METRIC_DIRECTIONS[metric]
     return PairedComparison(
         metric=metric,

@@ -196,11 +196,12 @@ def _fake_cell(
     offset_m: float,
     faults: str = "paper",
     seed: int = 0,
+    seed_shift_m: float = 0.0005,
 ) -> SweepCell:
-    """A finished cell whose estimate is the ground truth shifted by ``offset_m`` (plus 0.5 mm
-    per ``seed``, so that seeds are distinct replicates) along x and turned by that offset x 100
-    degrees about z."""
-    offset_m += 0.0005 * seed
+    """A finished cell whose estimate is the ground truth shifted by ``offset_m`` (plus
+    ``seed_shift_m`` per ``seed``, so that seeds are distinct replicates) along x and turned by
+    that offset x 100 degrees about z."""
+    offset_m += seed_shift_m * seed
     cell = SweepCell.create(
         label=tracker,
         fault_label=faults,
@@ -283,9 +284,11 @@ def test_verdict_on_the_default_inputs_comes_first_and_ignores_other_flows(
     assert "under 0/1 presets" in verdict_lines[1] and "fails: paper:" in verdict_lines[1]
     assert "(no detectable difference)" in verdict_lines[1]
     seeds_needed = report.split("## Seeds needed")[1]
-    assert f"EVALUATION, default inputs ({DEFAULT_FLOW}): seeds to detect a 2-point" in (
-        seeds_needed
-    )
+    assert f"EVALUATION, default inputs ({DEFAULT_FLOW}): seeds for a 2-point" in seeds_needed
+    (advice,) = default.advice
+    assert advice.preset == "paper" and advice.pairs == 4 and advice.seeds_matter
+    assert advice.seeds is not None and advice.seeds >= 1
+    assert f"paper: {advice.seeds} (paired sd " in seeds_needed
     assert f"### EVALUATION: default inputs ({DEFAULT_FLOW})" in report
 
 
@@ -302,7 +305,24 @@ def test_a_verdict_on_one_replicate_calls_no_win_and_asks_for_seeds(tmp_path: Pa
     )
     verdict = scores.default_verdicts["evaluation"]
     assert verdict.wins == [] and "(no detectable difference)" in verdict.fails[0]
-    assert verdict.seeds_needed is None and "unknown" in verdict.recommendation()
+    assert verdict.recommendation().endswith("paper: unknown (fewer than 2 pairs)")
+
+
+def test_seeds_that_change_nothing_ask_for_sequences(tmp_path: Path) -> None:
+    """Three seeds whose cells are identical (no randomness) are one replicate: the advice is
+    to add sequences, not seeds."""
+    errors_m = (("roft", 0.01), ("detector-hold", 0.05))
+    cells = [
+        _fake_cell(tmp_path, t, DEFAULT_FLOW, e, seed=s, seed_shift_m=0.0)
+        for t, e in errors_m
+        for s in (0, 1, 2)
+    ]
+    scores = score_stress(
+        cells, tmp_path, {"bvh-002_06": "evaluation"}, subject="roft", baselines=["detector-hold"]
+    )
+    verdict = scores.default_verdicts["evaluation"]
+    assert verdict.pairs == 1 and verdict.wins == []
+    assert "paper: seeds change nothing here, add sequences" in verdict.recommendation()
 
 
 @pytest.mark.slow
