@@ -629,7 +629,7 @@ def format_compare(result: CompareResult) -> str:
             "frames": w.frames,
             "share": 100.0 * w.share,
             "t": w.t_cm.text("+.2f"),
-            "t_share": None if not math.isfinite(w.t_share) else 100.0 * w.t_share,
+            "t_share": None if not math.isfinite(w.t_share) else 100.0 * w.t_share + 0.0,
             "a": w.a_deg.text("+.2f"),
         }
         for w in result.where
