@@ -94,3 +94,23 @@ def test_sweep_summary_gives_means_with_intervals_and_a_paired_table(tmp_path) -
         )
         / 2
     )
+
+
+def test_a_series_band_is_drawn_around_its_line() -> None:
+    """The sweep's parameter plot: each line gets a shaded band over its intervals."""
+    from roft_sim.report.plotting import Panel, Series, line_figure
+
+    banded = Series(
+        x=[0, 1, 2],
+        y=[1.0, 2.0, 3.0],
+        label="a",
+        band_low=[0.5, 1.5, 2.5],
+        band_high=[1.5, 2.5, 3.5],
+    )
+    figure = line_figure([Panel(title="t", y_label="y [cm]", series=(banded,))], x_label="x")
+    (axes,) = figure.axes
+    assert len(axes.collections) == 1  # the band
+    (path,) = axes.collections[0].get_paths()
+    assert path.vertices[:, 1].min() == 0.5 and path.vertices[:, 1].max() == 3.5
+    with pytest.raises(ValueError, match="both band_low and band_high"):
+        Series(x=[0, 1], y=[1.0, 2.0], band_low=[0.0, 1.0])
