@@ -16,10 +16,13 @@ reported on EVALUATION, never to choose), renders each sequence once
 into ``OUT/data`` (reused by later runs), runs the grid with the sweep machinery into
 ``OUT/grid`` (parallel, resumable: run the same command again to continue), and prints, per
 split (TUNING, EVALUATION, HOLDOUT, named), trackers x presets x metrics pooled over sequences,
-flows and seeds, per flow source, per sequence, and the verdict line. The report is also written
-to ``OUT/report.md``. ``--random-mixes N`` replaces the size's fault presets by N random fault
-mixes (seeds ``--mix-seed`` .. ``--mix-seed + N - 1``, written to ``OUT/mixes/``;
-docs/faults.md, "Random mixes"): a verdict on fault mixes nobody tuned on. Captured sequences
+flows and seeds, per flow source, per sequence, and the verdict lines (paired: a preset is a
+win only when every paired 95 % interval excludes 0; each line says how many replicates it rests
+on, and a "Seeds needed" section how many seeds a 2-point ADD-AUC difference needs; ``--seeds``
+replaces the size's seeds). The report is also written to ``OUT/report.md``.
+``--random-mixes N`` replaces the size's fault presets by N random fault mixes (seeds
+``--mix-seed`` .. ``--mix-seed + N - 1``, written to ``OUT/mixes/``; docs/faults.md, "Random
+mixes"): a verdict on fault mixes nobody tuned on. Captured sequences
 need the shared trajectories folder (``--trajectories``, else ``$ROFT_SIM_TRAJECTORIES``, else
 ``../shared/trajectories`` beside the repository); without it they are skipped with a note.
 """
@@ -60,6 +63,17 @@ def write_random_mixes(folder: Path, seeds: range) -> tuple[str, ...]:
     return tuple(paths)
 
 
+def _seeds(parser: argparse.ArgumentParser, text: str) -> tuple[int, ...]:
+    """``--seeds S1,S2``: distinct integers >= 0 (else a usage error)."""
+    try:
+        seeds = tuple(int(x) for x in text.split(",") if x.strip())
+    except ValueError:
+        parser.error(f"--seeds must be comma-separated integers, got {text!r}")
+    if not seeds or min(seeds) < 0 or len(set(seeds)) != len(seeds):
+        parser.error(f"--seeds must list distinct integers >= 0, got {text!r}")
+    return seeds
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     sizes = parser.add_mutually_exclusive_group()
@@ -87,11 +101,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--mix-seed", type=int, default=1000, help="seed of the first random mix (default 1000)"
     )
+    parser.add_argument(
+        "--seeds", metavar="S1,S2", help="run seeds instead of the size's (more replicates)"
+    )
     args = parser.parse_args(argv)
     if args.random_mixes is not None and args.random_mixes < 1:
         parser.error(f"--random-mixes must be >= 1, got {args.random_mixes}")
     if args.mix_seed < 0:
         parser.error(f"--mix-seed must be >= 0, got {args.mix_seed}")
+    seeds = None if args.seeds is None else _seeds(parser, args.seeds)
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     select_gl_backend(os.environ)
     config_path = args.config or (
@@ -109,6 +127,8 @@ def main(argv: list[str] | None = None) -> int:
             "skipped (pass --trajectories DIR)",
             file=sys.stderr,
         )
+    if seeds is not None:
+        size = dataclasses.replace(size, seeds=seeds)
     if args.random_mixes:
         seeds = range(args.mix_seed, args.mix_seed + args.random_mixes)
         size = dataclasses.replace(size, faults=write_random_mixes(args.out / "mixes", seeds))

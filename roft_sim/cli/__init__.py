@@ -24,6 +24,7 @@ from typing import TextIO
 from roft_sim import __version__
 from roft_sim.cli import (
     assets,
+    compare,
     dataset,
     demo,
     faults,
@@ -55,6 +56,7 @@ VERBS: tuple[tuple[str, RegisterVerb], ...] = (
     ("assets", assets.register),
     ("run", run.register),
     ("sweep", sweep.register),
+    ("compare", compare.register),
     ("report", report.register),
     ("view", view.register),
     ("paper", paper.register),

@@ -37,8 +37,10 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         description="Run every combination of trackers, fault configurations (optionally with a "
         "swept delay or dropout rate), sequences and seeds as independent cells in parallel "
         "processes. Finished cells are kept and never redone (--resume continues an interrupted "
-        "sweep). Writes summary.{md,csv,tex}, cells.csv, timing.csv and plots/ (error vs the "
-        "parameter, per-frame error traces with pose arrivals). See docs/running.md.",
+        "sweep). Writes summary.{md,csv,tex} (each metric's mean over the sequence x seed "
+        "replicates with its 95 % interval), paired.csv (every tracker against the first on the "
+        "same cells), cells.csv, timing.csv and plots/ (error vs the parameter, per-frame error "
+        "traces with pose arrivals). See docs/running.md and docs/statistics.md.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="examples (sweeps/delay.toml: a sweep file you write, format in docs/running.md):\n"
         "  roft-sim sweep --config sweeps/delay.toml --out sweeps/delay --workers 2\n"

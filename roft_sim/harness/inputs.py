@@ -161,6 +161,12 @@ def _resolve_pose_set(sequence: Sequence, choice: str) -> tuple[Sequence, str | 
     available = tuple(sequence.pose_sets())
     if choice == NO_SET:
         return sequence, None
+    if choice.startswith("redraw:"):  # a fresh draw of the pose detector (detector_draws)
+        from roft_sim.harness.detector_draws import WithRedrawnPoses, redraw_seed
+
+        seed = redraw_seed(choice)
+        assert seed is not None
+        return WithRedrawnPoses(sequence, seed), choice
     if choice == GT_SET:
         if GT_SET in available:
             return sequence, GT_SET

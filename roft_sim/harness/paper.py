@@ -16,6 +16,7 @@ ROFT's velocity filter (its spatial twist, converted with the ground-truth posit
 from __future__ import annotations
 
 import dataclasses
+import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -244,27 +245,37 @@ def _tracker_config(row: PaperRow) -> Any:
 
 
 def plan_paper(
-    rows: Sequence[PaperRow], sequence_paths: Sequence[Path], *, flow: str, seed: int
+    rows: Sequence[PaperRow],
+    sequence_paths: Sequence[Path],
+    *,
+    flow: str,
+    seed: int,
+    seeds: int = 1,
 ) -> list[SweepCell]:
-    """The cells: every row on every sequence, under the ``paper`` faults.
+    """The cells: every row on every sequence under the ``paper`` faults, for each of the run
+    seeds ``seed .. seed + seeds - 1`` (after the first, rows that read the detector get a
+    fresh detector draw: :func:`~roft_sim.harness.paper_seeds.seed_poses`).
 
     Raises:
         ConfigError: a bad seed or flow spec, or a sequence that cannot feed a row's inputs.
     """
+    from roft_sim.harness.paper_seeds import paper_seeds, seed_poses
+
     faults = load_faults(PAPER_FAULTS)
     sequences = [(str(Path(p).resolve()), open_sequence(p)) for p in sequence_paths]
+    run_seeds = paper_seeds(seed, seeds)
     cells = []
     for row in rows:
         config = _tracker_config(row)
-        for path, seq in sequences:
+        for (path, seq), s in itertools.product(sequences, run_seeds):
             options = RunOptions(
                 tracker=row.tracker,
                 tracker_config=config,
                 faults=faults,
                 flow=flow if row.flow else "none",
-                poses=row.poses,
+                poses=seed_poses(row.poses, s, run_seeds[0]),
                 masks=row.masks,
-                seed=seed,
+                seed=s,
                 include_rgb=False,
                 invalid=PAPER_INVALID,
             )
@@ -1053,6 +1064,31 @@ def write_paper_tables(
     return path, findings
 
 
+def _seed_intervals(
+    tables_md: Path,
+    cells: Sequence[SweepCell],
+    records: dict[str, dict[str, Any]],
+    cells_dir: Path,
+    results: dict[str, RowMetrics],
+) -> dict[str, Any]:
+    """Appends the section on the intervals over the seeds to ``tables_md``; returns its JSON
+    (:mod:`roft_sim.harness.paper_seeds`)."""
+    from roft_sim.harness.paper_seeds import (
+        metrics_by_seed,
+        uncertainty_json,
+        uncertainty_markdown,
+    )
+
+    paper = paper_tables()
+    by_seed = metrics_by_seed(cells, records, cells_dir)
+    entries = _table_entries(results, paper)
+    configurations = checked_configurations(results)
+    section = uncertainty_markdown(by_seed, paper, entries, configurations)
+    text = tables_md.read_text(encoding="utf-8")
+    atomic_write_text(tables_md, text + "\n" + "\n".join(section))
+    return uncertainty_json(by_seed, paper, entries, configurations)
+
+
 def run_paper(
     sequence_paths: Sequence[Path],
     out_dir: str | Path,
@@ -1060,6 +1096,7 @@ def run_paper(
     rows: Sequence[PaperRow] | None = None,
     flow: str = "auto",
     seed: int = 0,
+    seeds: int = 1,
     executor: Executor | None = None,
     progress: bool = False,
     header: Sequence[str] = (),
@@ -1072,7 +1109,10 @@ def run_paper(
         out_dir: output folder.
         rows: the rows (default: :func:`paper_rows`).
         flow: flow source of the rows that use flow (see ``roft-sim run --flow``).
-        seed: run seed.
+        seed: run seed (the first of ``seeds``).
+        seeds: run every row over this many seeds (fault and detector draws); above 1 the
+            tables pool every seed's frames and ``tables.md`` gets the intervals over the seeds
+            (:mod:`roft_sim.harness.paper_seeds`).
         executor: where the cells run (default: in this process).
         progress: progress bar over cells.
         header: Markdown lines put before the tables.
@@ -1081,10 +1121,13 @@ def run_paper(
     out = Path(out_dir)
     rows = list(rows) if rows is not None else paper_rows()
     paths = find_sequences(sequence_paths)
-    cells = plan_paper(rows, paths, flow=flow, seed=seed)
+    cells = plan_paper(rows, paths, flow=flow, seed=seed, seeds=seeds)
     records = execute_cells(cells, out / CELLS_DIR, executor=executor, progress=progress)
     results = paper_metrics(cells, records, out / CELLS_DIR)
     tables, findings = write_paper_tables(out, rows, results, header=header)
+    uncertainty = (
+        _seed_intervals(tables, cells, records, out / CELLS_DIR, results) if seeds > 1 else None
+    )
     motions = {
         m.configuration: {"rows": m.rows, "rank_correlation": m.rank_correlation}
         for m in _per_object_motions(results, paper_tables())
@@ -1096,6 +1139,8 @@ def run_paper(
             "faults": PAPER_FAULTS,
             "flow": flow,
             "seed": seed,
+            "seeds": seeds,
+            "uncertainty": uncertainty,
             "rows": [dataclasses.asdict(r) for r in rows],
             "sequences": [str(p) for p in paths],
             "cells": [c.cell_id for c in cells],

@@ -16,6 +16,12 @@ e_a, e_v, e_w, and the NEES of the pose and velocity blocks where a tracker repo
 covariances), pooled per split and per sequence, and two verdict lines per split: first on the
 default inputs (the stored NVOF-like flow, :data:`DEFAULT_FLOW`: the issue's criterion), then
 pooled over every flow source.
+
+A verdict is paired (docs/statistics.md): the subject and a baseline are compared on the same
+cells (sequence, flow source, seed: the same fault draw), the mean difference of each verdict
+metric gets its 95 % interval, and a preset is a win only when every interval excludes 0 in the
+subject's favour. Each line says how many replicates it rests on and how many seeds would detect
+a :data:`DETECTABLE_ADD_AUC_POINTS`-point ADD-AUC difference.
 """
 
 from __future__ import annotations
@@ -39,10 +45,12 @@ from roft_sim.harness.evaluation import estimate_errors
 from roft_sim.harness.inputs import PREFERRED_FLOW_SET
 from roft_sim.harness.options import InitPolicy
 from roft_sim.harness.outputs import ESTIMATES_FILE, load_estimates
+from roft_sim.harness.replicates import PairedSet, paired_set, replicate_scalars
 from roft_sim.harness.robust_start import RobustStartConfig
 from roft_sim.harness.sweep import SweepConfig, run_sweep
 from roft_sim.metrics import SequenceMetrics, concatenate_metrics
 from roft_sim.metrics.consistency import chi2_bounds, nees
+from roft_sim.metrics.statistics import BETTER, replicates_needed
 from roft_sim.shipped_files import scenarios_dir
 
 __all__ = [
@@ -51,6 +59,7 @@ __all__ = [
     "StressConfig",
     "StressResult",
     "Verdict",
+    "SeedAdvice",
     "shipped_stress_config",
     "shipped_holdout_config",
     "SPLITS",
@@ -62,6 +71,7 @@ __all__ = [
     "format_stress_report",
     "METRICS",
     "DEFAULT_FLOW",
+    "DETECTABLE_ADD_AUC_POINTS",
 ]
 
 _log = logging.getLogger(__name__)
@@ -91,6 +101,12 @@ VERDICT_METRICS: dict[str, str] = {
     "rmse_a_deg": "e_a",
 }
 """The metrics the verdict compares, with their names in the verdict line."""
+
+DETECTABLE_ADD_AUC_POINTS = 2.0
+"""The ADD-AUC difference [points] the seed recommendation of a verdict line is sized for."""
+
+MAX_REPLICATES = 10_000
+"""Above this many replicates the seed recommendation gives up."""
 
 DEFAULT_FLOW = f"stored:{PREFERRED_FLOW_SET}"
 """The flow source of the default inputs (the stored NVOF-like set a plain ``roft-sim run``
@@ -341,7 +357,8 @@ def render_stress_sequences(
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class Verdict:
-    """Whether the subject beats every baseline on every verdict metric, preset by preset."""
+    """Whether the subject beats every baseline on every verdict metric, preset by preset, by
+    paired intervals (a win only when every interval excludes 0)."""
 
     split: str
     """The split judged."""
@@ -351,17 +368,67 @@ class Verdict:
     wins: list[str]
     """Presets where it does."""
     fails: list[str]
-    """``preset: which metric against which baseline`` where it does not."""
+    """``preset: which metric against which baseline, difference [interval] (verdict)`` where
+    it does not."""
+    pairs: int = 0
+    """The fewest paired replicates any comparison of the line rests on."""
+    design: str = ""
+    """What the replicates are, e.g. ``2 sequences x 1 flow x 3 seeds``."""
+    advice: tuple[SeedAdvice, ...] = ()
+    """Per preset, the seeds a :data:`DETECTABLE_ADD_AUC_POINTS`-point difference needs."""
 
     def line(self, subject: str, baselines: Sequence[str]) -> str:
-        """The verdict sentence."""
+        """The verdict sentence, with what it rests on and the seeds it would need."""
         total = len(self.wins) + len({f.split(":")[0] for f in self.fails})
         text = (
             f"{self.split.upper()}, {self.inputs}: {subject} beats {' and '.join(baselines)} "
             "on ADD-AUC, e_t, "
             f"e_a under {len(self.wins)}/{total} presets"
         )
+        if self.design:
+            plural = "" if self.pairs == 1 else "s"
+            text += (
+                f" (paired 95 % intervals, at least {self.pairs} replicate{plural} each: "
+                f"{self.design})"
+            )
         return text + ("; fails: " + "; ".join(self.fails) if self.fails else "")
+
+    def recommendation(self) -> str:
+        """Per preset, how many seeds a :data:`DETECTABLE_ADD_AUC_POINTS`-point ADD-AUC
+        difference needs (80 % power, every baseline)."""
+        head = f"{self.split.upper()}, {self.inputs}: seeds for a "
+        head += f"{DETECTABLE_ADD_AUC_POINTS:g}-point ADD-AUC difference (80 % power): "
+        return head + "; ".join(a.text() for a in self.advice)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class SeedAdvice:
+    """How many seeds one preset's comparisons need (:func:`_seed_advice`)."""
+
+    preset: str
+    """The preset's name."""
+    seeds: int | None
+    """Seeds that would find a :data:`DETECTABLE_ADD_AUC_POINTS`-point ADD-AUC difference with
+    80 % power against every baseline, from the largest paired standard deviation taken at its
+    upper 80 % confidence bound (:func:`~roft_sim.metrics.statistics.replicates_needed`); None:
+    more than :data:`MAX_REPLICATES` replicates, or not known."""
+    paired_sd: float
+    """That largest paired standard deviation [ADD-AUC points]; NaN with fewer than 2 pairs."""
+    pairs: int
+    """The fewest pairs it was measured on."""
+    seeds_matter: bool
+    """False when no seed changed the draw (each sequence counted once): more seeds cannot add
+    replicates, only more sequences can."""
+
+    def text(self) -> str:
+        """``paper: 12 (paired sd 3.10 over 6 pairs)``, or why there is no number."""
+        if not self.seeds_matter:
+            return f"{self.preset}: seeds change nothing here, add sequences"
+        if self.pairs < 2 or not math.isfinite(self.paired_sd):
+            return f"{self.preset}: unknown (fewer than 2 pairs)"
+        sd = f"paired sd {self.paired_sd:.2f} over {self.pairs} pairs"
+        count = f"more than {MAX_REPLICATES} replicates" if self.seeds is None else self.seeds
+        return f"{self.preset}: {count} ({sd})"
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -449,13 +516,66 @@ class StressScores:
     per_flow: Scores
     """``(split, tracker, flow)``, pooled over presets, sequences and seeds."""
     verdicts: dict[str, Verdict]
-    """Per split, on every flow source."""
+    """Per split, on every flow source (paired over sequences x flows x seeds)."""
     default_verdicts: dict[str, Verdict]
-    """Per split, on the default flow only."""
+    """Per split, on the default flow only (paired over sequences x seeds)."""
+
+
+CellKey = tuple[str, str, int]
+"""``(sequence, flow, seed)``: the cells of two trackers with the same key saw the same data
+under the same fault draw."""
+Replicates = dict[tuple[str, str, str], dict[CellKey, dict[str, float]]]
+"""``(split, tracker, preset) -> cell key -> metric scalars`` (see :class:`StressScores`)."""
+
+
+def _design(keys: Sequence[CellKey]) -> str:
+    """``"2 sequences x 1 flow x 3 seeds"`` of a set of cell keys."""
+    counts = [len({k[i] for k in keys}) for i in range(3)]
+    names = ("sequence", "flow", "seed")
+    return " x ".join(f"{c} {n}{'' if c == 1 else 's'}" for c, n in zip(counts, names, strict=True))
+
+
+def _judge_preset(
+    replicates: Replicates, split: str, preset: str, subject: str, baselines: Sequence[str]
+) -> tuple[list[str], list[PairedSet]]:
+    """What the subject loses under one preset (empty: a win), and the paired sets behind it."""
+    own = replicates[(split, subject, preset)]
+    lost: list[str] = []
+    sets: list[PairedSet] = []
+    for base in baselines:
+        other = replicates.get((split, base, preset))
+        if other is None:
+            continue
+        pairs = paired_set(subject, base, own, other, (split, preset, base), list(VERDICT_METRICS))
+        sets.append(pairs)
+        for key, label in VERDICT_METRICS.items():
+            c = pairs.comparisons[key]
+            if c.verdict != BETTER:
+                lost.append(f"{label} {c.difference.text('+.2f')} vs {base} ({c.verdict})")
+    return lost, sets
+
+
+def _seed_advice(preset: str, sets: Sequence[PairedSet], keys: Sequence[CellKey]) -> SeedAdvice:
+    """The seeds one preset's comparisons need (see :class:`SeedAdvice`); ``keys`` are the
+    subject's cells under the preset."""
+    sds = [p.comparisons["add_auc_pct"].sd for p in sets]
+    sd = max(sds) if sds and all(math.isfinite(x) for x in sds) else math.nan
+    pairs = min((p.pairs for p in sets), default=0)
+    per_seed = len({k[:2] for k in keys}) or 1
+    needed = replicates_needed(
+        sd, DETECTABLE_ADD_AUC_POINTS, pilot_pairs=pairs, max_n=MAX_REPLICATES
+    )
+    return SeedAdvice(
+        preset=fault_spec_name(preset),
+        seeds=None if needed is None else -(-needed // per_seed),
+        paired_sd=sd,
+        pairs=pairs,
+        seeds_matter=len({k[2] for k in keys}) < 2 or pairs > per_seed,
+    )
 
 
 def _verdicts(
-    pooled: Scores,
+    replicates: Replicates,
     splits: Sequence[str],
     presets: Sequence[str],
     *,
@@ -463,31 +583,37 @@ def _verdicts(
     baselines: Sequence[str],
     inputs: str,
 ) -> dict[str, Verdict]:
-    """One :class:`Verdict` per split that has scores: does ``subject`` beat every baseline on
-    every :data:`VERDICT_METRICS` metric, preset by preset."""
+    """One :class:`Verdict` per split that has replicates: does ``subject`` beat every baseline
+    on every :data:`VERDICT_METRICS` metric, preset by preset, by paired intervals over the
+    cells they share; with the replicates it rests on and the seeds a
+    :data:`DETECTABLE_ADD_AUC_POINTS`-point ADD-AUC difference needs."""
     verdicts = {}
     for split in splits:
-        wins, fails = [], []
+        wins, fails, advice, pairs = [], [], [], []
+        keys: set[CellKey] = set()
         for preset in presets:
-            own = pooled.get((split, subject, preset))
-            if own is None:
+            if (split, subject, preset) not in replicates:
                 continue
-            lost = []
-            for base in baselines:
-                other = pooled.get((split, base, preset))
-                if other is None:
-                    continue
-                for key, label in VERDICT_METRICS.items():
-                    a, b = own[key], other[key]
-                    better = (a > b) if key == "add_auc_pct" else (a < b)
-                    if not (math.isfinite(a) and better):
-                        lost.append(f"{label} {a:.3g} vs {base} {b:.3g}")
+            own = sorted(replicates[(split, subject, preset)])
+            keys |= set(own)
+            lost, sets = _judge_preset(replicates, split, preset, subject, baselines)
+            advice.append(_seed_advice(preset, sets, own))
+            pairs += [p.pairs for p in sets]
             if lost:
                 fails.append(f"{fault_spec_name(preset)}: " + ", ".join(lost))
             else:
                 wins.append(fault_spec_name(preset))
-        if wins or fails:
-            verdicts[split] = Verdict(split=split, inputs=inputs, wins=wins, fails=fails)
+        if not (wins or fails):
+            continue
+        verdicts[split] = Verdict(
+            split=split,
+            inputs=inputs,
+            wins=wins,
+            fails=fails,
+            pairs=min(pairs, default=0),
+            design=_design(sorted(keys)),
+            advice=tuple(advice),
+        )
     return verdicts
 
 
@@ -502,12 +628,13 @@ def score_stress(
 ) -> StressScores:
     """Pooled metrics per (split, tracker, preset) over every flow and on ``default_flow`` only,
     per (sequence, tracker, preset) and per (split, tracker, flow), and the two verdicts per
-    split (default flow; every flow).
+    split (default flow; every flow), paired cell by cell (:func:`_verdicts`).
 
     Pooling concatenates the per-frame errors (the reference's ALL row); NEES is the mean over
     the pooled frames of the pose and velocity blocks of the reported covariance.
     """
     parts: dict[tuple[str, ...], list[tuple[SequenceMetrics, Any, Any]]] = {}
+    replicates: dict[str, Replicates] = {"split": {}, "default": {}}
     gt_cache: dict[str, Any] = {}
     for cell in cells:
         m = load_cell_metrics(cells_dir, cell.cell_id)
@@ -517,6 +644,11 @@ def score_stress(
         split = split_of[cell.sequence_name]
         entry = (m, pose, vel)
         parts.setdefault(("split", split, cell.label, cell.fault_label), []).append(entry)
+        cell_key = (cell.sequence_name, cell.options.flow, cell.options.seed)
+        judged = ("split", "default") if cell.options.flow == default_flow else ("split",)
+        for name in judged:
+            by_cell = replicates[name].setdefault((split, cell.label, cell.fault_label), {})
+            by_cell[cell_key] = replicate_scalars(m)
         if cell.options.flow == default_flow:
             parts.setdefault(("default", split, cell.label, cell.fault_label), []).append(entry)
         parts.setdefault(("seq", cell.sequence_name, cell.label, cell.fault_label), []).append(
@@ -534,9 +666,9 @@ def score_stress(
     presets = list(dict.fromkeys(c.fault_label for c in cells))
     splits = sorted({split_of[c.sequence_name] for c in cells})
 
-    def judge(table: Scores, inputs: str) -> dict[str, Verdict]:
+    def judge(group: str, inputs: str) -> dict[str, Verdict]:
         return _verdicts(
-            table, splits, presets, subject=subject, baselines=baselines, inputs=inputs
+            replicates[group], splits, presets, subject=subject, baselines=baselines, inputs=inputs
         )
 
     return StressScores(
@@ -544,8 +676,8 @@ def score_stress(
         pooled_default=tables["default"],
         per_sequence=tables["seq"],
         per_flow=tables["flow"],
-        verdicts=judge(tables["split"], "all flows"),
-        default_verdicts=judge(tables["default"], f"default inputs ({default_flow})"),
+        verdicts=judge("split", "all flows"),
+        default_verdicts=judge("default", f"default inputs ({default_flow})"),
     )
 
 
@@ -731,6 +863,7 @@ def format_stress_report(
                 out += _table(f"### {split.upper()} sequence {name}", rows, "preset")
     out.append("## Verdict")
     out.append("")
+    recommendations = []
     for verdicts in (
         result.scores.default_verdicts,
         result.scores.verdicts,
@@ -738,4 +871,13 @@ def format_stress_report(
         for split in SPLITS:
             if split in verdicts:
                 out.append(verdicts[split].line(subject, baselines))
+                recommendations.append(verdicts[split].recommendation())
+    out += [
+        "",
+        "A preset is a win when, on the cells both trackers ran (same sequence, flow and seed), "
+        "the 95 % interval of the mean difference excludes 0 in the subject's favour for every "
+        "verdict metric and baseline (docs/statistics.md); a failure shows the difference "
+        "subject - baseline with its interval.",
+    ]
+    out += ["", "## Seeds needed", "", *recommendations]
     return "\n".join(out) + "\n"

@@ -27,10 +27,14 @@ fixed delay of ``d`` frames; ``dropout = p`` adds an independent loss with proba
 result (the same seed loses a superset of results as ``p`` grows, so curves stay smooth).
 
 Outputs (docs/running.md): ``cells/<cell_id>/`` (one run folder per cell), ``summary.md``,
-``summary.csv``, ``summary.tex`` (one row per tracker x faults x parameter value, pooled over
-sequences and seeds: the "ALL" metrics), ``cells.csv`` (one row per cell), ``timing.csv`` (step
-times; kept apart so the summary files are identical whenever the estimates are), ``plots/``
-(error versus the parameter, per-frame error traces with pose arrivals) and ``sweep.json``.
+``summary.csv``, ``summary.tex`` (one row per tracker x faults x parameter value: each metric as
+the mean over the replicates, the sequence x seed cells, with its 95 % confidence interval and
+the number of replicates; ``summary.csv`` also has the "ALL" metrics pooled over their frames),
+``paired.csv`` (every tracker against the first on the same cells: mean difference, interval,
+verdict; docs/statistics.md), ``cells.csv`` (one row per cell), ``timing.csv`` (step times;
+kept apart so the summary files are identical whenever the estimates are), ``plots/`` (error
+versus the parameter with interval bands, per-frame error traces with pose arrivals) and
+``sweep.json``.
 """
 
 from __future__ import annotations
@@ -61,6 +65,14 @@ from roft_sim.harness.cells import (
 from roft_sim.harness.inputs import check_inputs
 from roft_sim.harness.options import InitPolicy, RunOptions
 from roft_sim.harness.outputs import DELIVERIES_FILE, load_deliveries
+from roft_sim.harness.replicates import (
+    REPLICATE_METRICS,
+    distinct_replicates,
+    interval_fields,
+    paired_set,
+    replicate_intervals,
+    replicate_scalars,
+)
 from roft_sim.harness.robust_start import RobustStartConfig
 from roft_sim.harness.run_dataset import find_sequences
 from roft_sim.metrics import (
@@ -70,6 +82,7 @@ from roft_sim.metrics import (
     policy_note,
     step_time_stats,
 )
+from roft_sim.metrics.statistics import CONFIDENCE, INTERVAL_METHOD
 from roft_sim.report.plotting import Panel, Series, line_figure, save_figure
 from roft_sim.report.tables import (
     ERROR_COLUMNS,
@@ -93,6 +106,8 @@ __all__ = [
     "run_sweep",
     "summarize_cells",
     "SUMMARY_COLUMNS",
+    "SUMMARY_CSV_COLUMNS",
+    "paired_rows",
 ]
 
 SWEPT_PARAMETERS: dict[str, str] = {
@@ -358,16 +373,32 @@ def plan_sweep(config: SweepConfig) -> list[SweepCell]:
 
 
 # --------------------------------------------------------------------------------- summary
-SUMMARY_COLUMNS: tuple[Column, ...] = (
+_GROUP_COLUMNS: tuple[Column, ...] = (
     Column("tracker", "tracker", align="left"),
     Column("faults", "faults", align="left"),
     Column("flow", "flow", align="left"),
     Column("value", "value", "g"),
     Column("sequences", "sequences", "d"),
+    Column("replicates", "n", "d"),
     Column("frames", "frames", "d"),
-    *ERROR_COLUMNS,
 )
-"""Columns of ``summary.*`` (deterministic: no timing)."""
+SUMMARY_COLUMNS: tuple[Column, ...] = (
+    *_GROUP_COLUMNS,
+    *(Column(f"{c.key}_ci", f"{c.header} mean [95 % CI]") for c in ERROR_COLUMNS),
+)
+"""Columns of ``summary.md`` and ``summary.tex``: per metric the mean over the replicates with
+its interval (deterministic: no timing)."""
+SUMMARY_CSV_COLUMNS: tuple[Column, ...] = (
+    *_GROUP_COLUMNS,
+    *ERROR_COLUMNS,
+    *(
+        Column(f"{k}_{part}", f"{k}_{part}")
+        for k in REPLICATE_METRICS
+        for part in ("mean", "lo", "hi")
+    ),
+)
+"""Columns of ``summary.csv``: the pooled ALL metrics, then per metric the replicate mean and
+the bounds of its interval."""
 
 _CELL_COLUMNS: tuple[Column, ...] = (
     Column("cell_id", "cell", align="left"),
@@ -406,7 +437,8 @@ class SweepResult:
     records: dict[str, dict[str, Any]]
     """``cell.json`` of every finished cell, by id (every cell unless ``shard``)."""
     summary_rows: list[dict[str, Any]]
-    """One row per tracker x faults x value (pooled over sequences and seeds); empty for a
+    """One row per tracker x faults x value: the pooled ALL metrics, the number of replicates
+    and each metric's replicate mean and interval (:data:`SUMMARY_CSV_COLUMNS`); empty for a
     shard run, which writes no summary."""
     plots: list[Path]
     """The plots written."""
@@ -427,18 +459,25 @@ def summarize_cells(
     list[dict[str, Any]],
     dict[tuple[str, str, float | None, str], SequenceMetrics],
 ]:
-    """Summary rows (pooled per tracker x faults x value x flow), timing rows, and the pooled
-    metrics.
+    """Summary rows (per tracker x faults x value x flow), timing rows, and the pooled metrics.
 
-    The pooled "ALL" metrics concatenate the per-frame errors of every sequence and seed of a
-    group (the reference's ALL row).
+    Each row has the pooled "ALL" metrics (the per-frame errors of every sequence and seed of a
+    group concatenated: the reference's ALL row), ``replicates`` (the cells with metrics, less
+    those that repeat another seed of their sequence exactly:
+    :func:`~roft_sim.harness.replicates.distinct_replicates`) and per metric the mean over the
+    replicates with its 95 % interval (:func:`~roft_sim.harness.replicates.interval_fields`).
     """
     groups: dict[tuple[str, str, float | None, str], list[SweepCell]] = {}
     for cell in cells:
         groups.setdefault(_group_key(cell), []).append(cell)
     rows, timing, pooled = [], [], {}
     for key, members in groups.items():
-        parts = [m for c in members if (m := load_cell_metrics(cells_dir, c.cell_id)) is not None]
+        loaded = [(c, load_cell_metrics(cells_dir, c.cell_id)) for c in members]
+        finished = [(c, m) for c, m in loaded if m is not None]
+        parts = [m for _, m in finished]
+        distinct = distinct_replicates(
+            {(c.sequence_name, c.options.seed): replicate_scalars(m) for c, m in finished}
+        )
         label, fault_label, value, flow = key
         row: dict[str, Any] = {
             "tracker": label,
@@ -447,11 +486,14 @@ def summarize_cells(
             "value": value,
             "sequences": len({c.sequence_name for c in members}),
         }
+        row["replicates"] = len(distinct)
         if parts:
             m = concatenate_metrics(parts)
             pooled[key] = m
             summary = m.summary()
             row |= {"frames": summary["frames"]} | {k: summary[k] for k in _METRIC_KEYS}
+            intervals = replicate_intervals(list(distinct.values()), key)
+            row |= interval_fields(intervals)
             if m.step_times_s is not None:
                 t = step_time_stats(m.step_times_s)
                 timing.append(
@@ -492,6 +534,75 @@ def _cell_rows(
     return rows
 
 
+_PAIRED_METRICS = ("add_auc_pct", "rmse_t_cm", "rmse_a_deg", "rmse_v_cmps", "rmse_w_dps")
+PAIRED_COLUMNS: tuple[Column, ...] = (
+    Column("tracker", "tracker", align="left"),
+    Column("versus", "versus", align="left"),
+    Column("faults", "faults", align="left"),
+    Column("flow", "flow", align="left"),
+    Column("value", "value", "g"),
+    Column("pairs", "pairs", "d"),
+    *(Column(f"{c.key}_paired", f"{c.header} A - B [95 % CI]") for c in ERROR_COLUMNS),
+)
+"""Columns of the paired table of ``summary.md``."""
+PAIRED_CSV_COLUMNS: tuple[Column, ...] = (
+    *PAIRED_COLUMNS[:6],
+    *(
+        Column(f"{k}_{part}", f"{k}_{part}")
+        for k in _PAIRED_METRICS
+        for part in ("diff", "lo", "hi", "verdict")
+    ),
+)
+"""Columns of ``paired.csv``."""
+
+
+def paired_rows(
+    cells: Sequence[SweepCell], records: dict[str, dict[str, Any]]
+) -> list[dict[str, Any]]:
+    """Every tracker row against the first one (the sweep's first tracker), per faults x value
+    x flow, paired on the cells with the same sequence and seed (the same fault draw): per
+    metric the mean difference A - B, its 95 % interval and the verdict word."""
+    labels = list(dict.fromkeys(c.label for c in cells))
+    if len(labels) < 2:
+        return []
+    by_group: dict[tuple[str, float | None, str], dict[str, dict[Any, dict[str, float]]]] = {}
+    for c in cells:
+        metrics = records.get(c.cell_id, {}).get("metrics")
+        if metrics is None:
+            continue
+        group = by_group.setdefault((c.fault_label, c.value, c.options.flow), {})
+        group.setdefault(c.label, {})[(c.sequence_name, c.options.seed)] = replicate_scalars(
+            metrics
+        )
+    rows = []
+    for (fault_label, value, flow), trackers in by_group.items():
+        reference = trackers.get(labels[0])
+        if reference is None:
+            continue
+        for label in labels[1:]:
+            if label not in trackers:
+                continue
+            key = (label, labels[0], fault_label, value, flow)
+            pairs = paired_set(label, labels[0], trackers[label], reference, key, _PAIRED_METRICS)
+            row: dict[str, Any] = {
+                "tracker": label,
+                "versus": labels[0],
+                "faults": fault_label,
+                "flow": flow,
+                "value": value,
+                "pairs": pairs.pairs,
+            }
+            for metric, comparison in pairs.comparisons.items():
+                d = comparison.difference
+                row[f"{metric}_paired"] = f"{d.text('+.2f')} {comparison.verdict}"
+                row[f"{metric}_diff"] = d.estimate if math.isfinite(d.estimate) else None
+                row[f"{metric}_lo"] = d.low if d.has_interval else None
+                row[f"{metric}_hi"] = d.high if d.has_interval else None
+                row[f"{metric}_verdict"] = comparison.verdict
+            rows.append(row)
+    return rows
+
+
 def _columns(
     parameter: str | None, columns: Sequence[Column], *, with_flow: bool = False
 ) -> list[Column]:
@@ -510,9 +621,15 @@ _PANELS = (
 )
 
 
+def _column(rows: Sequence[dict[str, Any]], key: str) -> list[float]:
+    """``row[key]`` of each row, NaN where missing."""
+    return [np.nan if r.get(key) is None else float(r[key]) for r in rows]
+
+
 def plot_error_vs_parameter(rows: Sequence[dict[str, Any]], parameter: str, path: Path) -> Path:
-    """A 2x2 figure of the pooled metrics versus the swept parameter, one line per tracker
-    (and base fault configuration when there are several)."""
+    """A 2x2 figure of the metrics versus the swept parameter: one line per tracker (and base
+    fault configuration when there are several) through the replicate means, with a band over
+    their 95 % intervals."""
     fault_labels = sorted({r["faults"] for r in rows})
     lines: dict[str, list[dict[str, Any]]] = {}
     for r in rows:
@@ -523,8 +640,15 @@ def plot_error_vs_parameter(rows: Sequence[dict[str, Any]], parameter: str, path
         series = []
         for name, members in lines.items():
             members = sorted(members, key=lambda r: r["value"])
-            y = [np.nan if r.get(key) is None else r[key] for r in members]
-            series.append(Series(x=[r["value"] for r in members], y=y, label=name))
+            series.append(
+                Series(
+                    x=[r["value"] for r in members],
+                    y=_column(members, f"{key}_mean"),
+                    label=name,
+                    band_low=_column(members, f"{key}_lo"),
+                    band_high=_column(members, f"{key}_hi"),
+                )
+            )
         panels.append(
             Panel(
                 title=f"{title} vs {parameter}", y_label=f"{title} [{unit}]", series=tuple(series)
@@ -598,6 +722,43 @@ def _safe_name(text: str) -> str:
     return "".join(ch if ch.isalnum() or ch in "-_=." else "_" for ch in text)
 
 
+_INTERVAL_NOTE = (
+    f"Each metric: the mean over the n replicates (the sequence x seed cells of a row) with its "
+    f"{CONFIDENCE:.0%} confidence interval ({INTERVAL_METHOD}; docs/statistics.md); "
+    "summary.csv also has the ALL metrics, pooled over the frames of every replicate."
+)
+
+
+def _paired_section(
+    cells: Sequence[SweepCell],
+    records: dict[str, dict[str, Any]],
+    out_dir: Path,
+    parameter: str | None,
+    with_flow: bool,
+) -> list[str]:
+    """Writes ``paired.csv`` and returns the Markdown of the paired table (none with a single
+    tracker)."""
+    from roft_sim.datasets.atomic_files import atomic_write_text
+
+    rows = paired_rows(cells, records)
+    if not rows:
+        return []
+    atomic_write_text(
+        out_dir / "paired.csv",
+        csv_table(_columns(parameter, PAIRED_CSV_COLUMNS, with_flow=with_flow), rows),
+    )
+    return [
+        f"## Paired: each tracker against {rows[0]['versus']} on the same cells",
+        "",
+        "Mean difference A - B over the cells with the same sequence and seed (the same fault "
+        f"draw), its {CONFIDENCE:.0%} interval and the verdict: better / worse only when the "
+        "interval excludes 0 (ADD-AUC higher is better, the errors lower).",
+        "",
+        markdown_table(_columns(parameter, PAIRED_COLUMNS, with_flow=with_flow), rows),
+        "",
+    ]
+
+
 def write_summary(
     config_name: str,
     cells: Sequence[SweepCell],
@@ -608,8 +769,9 @@ def write_summary(
     plots: bool = True,
     cells_dir: Path | None = None,
 ) -> tuple[list[dict[str, Any]], list[Path]]:
-    """Writes ``summary.{md,csv,tex}``, ``cells.csv``, ``timing.csv`` and the plots into
-    ``out_dir`` (the cells are read from ``cells_dir``, default ``out_dir/cells``)."""
+    """Writes ``summary.{md,csv,tex}``, ``paired.csv`` (with two trackers or more),
+    ``cells.csv``, ``timing.csv`` and the plots into ``out_dir`` (the cells are read from
+    ``cells_dir``, default ``out_dir/cells``)."""
     from roft_sim.datasets.atomic_files import atomic_write_text
 
     cells_dir = cells_dir if cells_dir is not None else out_dir / CELLS_DIR
@@ -639,19 +801,20 @@ def write_summary(
         f"{len({(c.fault_label, c.value) for c in cells})} fault configurations x "
         + (f"{len({c.options.flow for c in cells})} flow sources x " if with_flow else "")
         + f"{len({c.sequence_name for c in cells})} sequences x "
-        f"{len({c.options.seed for c in cells})} seeds. Metrics pooled over the frames of every "
-        "sequence and seed (ALL)."
+        f"{len({c.options.seed for c in cells})} seeds. {_INTERVAL_NOTE}"
     )
     md += ["", markdown_table(columns, rows), ""]
     md += [policy_note(p) for p in sorted({c.options.invalid for c in cells})]
     md.append("")
+    md += _paired_section(cells, records, out_dir, parameter, with_flow)
     for p in written:
         md.append(f"![{p.stem}]({p.relative_to(out_dir).as_posix()})\n")
     atomic_write_text(out_dir / "summary.md", "\n".join(md))
-    atomic_write_text(out_dir / "summary.csv", csv_table(columns, rows))
+    csv_columns = _columns(parameter, SUMMARY_CSV_COLUMNS, with_flow=with_flow)
+    atomic_write_text(out_dir / "summary.csv", csv_table(csv_columns, rows))
     atomic_write_text(
         out_dir / "summary.tex",
-        latex_table(columns, rows, caption=f"Sweep {config_name}: pooled metrics (ALL)"),
+        latex_table(columns, rows, caption=f"Sweep {config_name}: replicate means, 95 % intervals"),
     )
     atomic_write_text(
         out_dir / "cells.csv",

@@ -1,6 +1,6 @@
 """Figures drawn with matplotlib (the Agg raster backend; no display, no ``pyplot`` global state):
-per-frame error traces with pose arrivals marked, metric-versus-parameter curves, accuracy curves
-and grouped bar charts of tables (the paper's tables beside the simulation).
+per-frame error traces with pose arrivals marked, metric-versus-parameter curves (with confidence
+bands), accuracy curves and grouped bar charts of tables (the paper's tables beside the simulation).
 
 Every figure is built from :class:`Panel` s, one set of axes each, whose titles and axis labels
 carry the units (``"position error [cm]"``), with a legend whenever a panel holds a labelled
@@ -67,11 +67,21 @@ class Series:
     """(N,) ordinates, in the panel's y unit; NaN leaves a gap."""
     label: str | None = None
     """Legend entry; None = not in the legend."""
+    band_low: ArrayLike | None = None
+    """(N,) lower edge of a shaded band around the line (a confidence interval), in the y
+    unit; NaN leaves a gap. None = no band."""
+    band_high: ArrayLike | None = None
+    """(N,) upper edge of the band; given together with ``band_low``."""
 
     def __post_init__(self) -> None:
         x, y = np.shape(self.x), np.shape(self.y)
         if len(x) != 1 or x != y:
             raise ValueError(f"a series needs x and y of the same length (N,), got {x} and {y}")
+        if (self.band_low is None) != (self.band_high is None):
+            raise ValueError("a band needs both band_low and band_high")
+        for edge in (self.band_low, self.band_high):
+            if edge is not None and np.shape(edge) != x:
+                raise ValueError(f"band edges need the shape of x {x}, got {np.shape(edge)}")
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -164,7 +174,7 @@ def line_figure(
                     label=events_label if i == 0 else None,
                 )
         for i, s in enumerate(panel.series):
-            ax.plot(
+            (line,) = ax.plot(
                 np.asarray(s.x, dtype=np.float64),
                 np.asarray(s.y, dtype=np.float64),
                 label=s.label,
@@ -173,6 +183,16 @@ def line_figure(
                 markersize=5,
                 zorder=2,
             )
+            if s.band_low is not None and s.band_high is not None:
+                ax.fill_between(
+                    np.asarray(s.x, dtype=np.float64),
+                    np.asarray(s.band_low, dtype=np.float64),
+                    np.asarray(s.band_high, dtype=np.float64),
+                    color=line.get_color(),
+                    alpha=0.18,
+                    linewidth=0,
+                    zorder=1.5,
+                )
         if integer_x:
             ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         _style(ax, panel, x_label)

@@ -190,10 +190,18 @@ def test_verdict_line_names_the_failures() -> None:
 
 
 def _fake_cell(
-    cells_dir: Path, tracker: str, flow: str, offset_m: float, faults: str = "paper"
+    cells_dir: Path,
+    tracker: str,
+    flow: str,
+    offset_m: float,
+    faults: str = "paper",
+    seed: int = 0,
+    seed_shift_m: float = 0.0005,
 ) -> SweepCell:
-    """A finished cell whose estimate is the ground truth shifted by ``offset_m`` along x and
-    turned by ``offset_m`` x 100 degrees about z."""
+    """A finished cell whose estimate is the ground truth shifted by ``offset_m`` (plus
+    ``seed_shift_m`` per ``seed``, so that seeds are distinct replicates) along x and turned by
+    that offset x 100 degrees about z."""
+    offset_m += seed_shift_m * seed
     cell = SweepCell.create(
         label=tracker,
         fault_label=faults,
@@ -201,7 +209,7 @@ def _fake_cell(
         value=None,
         sequence_path=str(cells_dir / "no-sequence"),
         sequence_name="bvh-002_06",
-        options=RunOptions(tracker=tracker, flow=flow),
+        options=RunOptions(tracker=tracker, flow=flow, seed=seed),
     )
     n = 20
     T_gt = np.tile(np.eye(4), (n, 1, 1))
@@ -247,27 +255,74 @@ def test_verdict_on_the_default_inputs_comes_first_and_ignores_other_flows(
         ("pose-only-ukf", DEFAULT_FLOW): 0.04,
         ("pose-only-ukf", "gt+noise:1"): 0.04,
     }
-    cells = [_fake_cell(tmp_path, t, f, e) for (t, f), e in errors_m.items()]
+    seeds = range(4)
+    cells = [_fake_cell(tmp_path, t, f, e, seed=s) for (t, f), e in errors_m.items() for s in seeds]
     baselines = ["detector-hold", "pose-only-ukf"]
     scores = score_stress(
         cells, tmp_path, {"bvh-002_06": "evaluation"}, subject="roft", baselines=baselines
     )
     default = scores.default_verdicts["evaluation"]
     assert (default.wins, default.fails) == (["paper"], [])
+    assert (default.pairs, default.design) == (4, "1 sequence x 1 flow x 4 seeds")
     assert scores.verdicts["evaluation"].wins == []
     assert "paper: ADD-AUC" in scores.verdicts["evaluation"].fails[0]
+    assert scores.verdicts["evaluation"].design == "1 sequence x 2 flows x 4 seeds"
     roft_default = scores.pooled_default[("evaluation", "roft", "paper")]
-    assert roft_default["rmse_t_cm"] == pytest.approx(1.0)
+    offsets_cm = [1.0, 1.05, 1.1, 1.15]  # pooled ALL: the RMSE over every frame of the 4 seeds
+    assert roft_default["rmse_t_cm"] == pytest.approx(np.sqrt(np.mean(np.square(offsets_cm))))
     result = _result(tmp_path, scores, "evaluation", baselines, (DEFAULT_FLOW, "gt+noise:1"))
     report = format_stress_report(result, subject="roft", baselines=baselines)
     verdict_lines = report.split("## Verdict")[1].strip().splitlines()
     assert verdict_lines[0] == (
         f"EVALUATION, default inputs ({DEFAULT_FLOW}): roft beats detector-hold and "
-        "pose-only-ukf on ADD-AUC, e_t, e_a under 1/1 presets"
+        "pose-only-ukf on ADD-AUC, e_t, e_a under 1/1 presets (paired 95 % intervals, at least "
+        "4 replicates each: 1 sequence x 1 flow x 4 seeds)"
     )
     assert verdict_lines[1].startswith("EVALUATION, all flows: roft beats")
-    assert "under 0/1 presets; fails: paper:" in verdict_lines[1]
+    # pooled over both flows the paired e_t difference is (+0 cm, +17 cm) per seed: the
+    # interval of its mean spans 0, so the win is not called
+    assert "under 0/1 presets" in verdict_lines[1] and "fails: paper:" in verdict_lines[1]
+    assert "(no detectable difference)" in verdict_lines[1]
+    seeds_needed = report.split("## Seeds needed")[1]
+    assert f"EVALUATION, default inputs ({DEFAULT_FLOW}): seeds for a 2-point" in seeds_needed
+    (advice,) = default.advice
+    assert advice.preset == "paper" and advice.pairs == 4 and advice.seeds_matter
+    assert advice.seeds is not None and advice.seeds >= 1
+    assert f"paper: {advice.seeds} (paired sd " in seeds_needed
     assert f"### EVALUATION: default inputs ({DEFAULT_FLOW})" in report
+
+
+def test_a_verdict_on_one_replicate_calls_no_win_and_asks_for_seeds(tmp_path: Path) -> None:
+    """One cell per tracker has no interval: the subject's far smaller error is no win, and
+    the seed recommendation says it cannot be estimated."""
+    baselines = ["detector-hold"]
+    cells = [
+        _fake_cell(tmp_path, t, DEFAULT_FLOW, e)
+        for t, e in (("roft", 0.01), ("detector-hold", 0.05))
+    ]
+    scores = score_stress(
+        cells, tmp_path, {"bvh-002_06": "evaluation"}, subject="roft", baselines=baselines
+    )
+    verdict = scores.default_verdicts["evaluation"]
+    assert verdict.wins == [] and "(no detectable difference)" in verdict.fails[0]
+    assert verdict.recommendation().endswith("paper: unknown (fewer than 2 pairs)")
+
+
+def test_seeds_that_change_nothing_ask_for_sequences(tmp_path: Path) -> None:
+    """Three seeds whose cells are identical (no randomness) are one replicate: the advice is
+    to add sequences, not seeds."""
+    errors_m = (("roft", 0.01), ("detector-hold", 0.05))
+    cells = [
+        _fake_cell(tmp_path, t, DEFAULT_FLOW, e, seed=s, seed_shift_m=0.0)
+        for t, e in errors_m
+        for s in (0, 1, 2)
+    ]
+    scores = score_stress(
+        cells, tmp_path, {"bvh-002_06": "evaluation"}, subject="roft", baselines=["detector-hold"]
+    )
+    verdict = scores.default_verdicts["evaluation"]
+    assert verdict.pairs == 1 and verdict.wins == []
+    assert "paper: seeds change nothing here, add sequences" in verdict.recommendation()
 
 
 @pytest.mark.slow
@@ -313,7 +368,11 @@ def test_small_benchmark_orders_roft_above_the_baselines(tmp_path: Path) -> None
 def test_holdout_split_gets_its_tables_and_verdict_after_evaluation(tmp_path: Path) -> None:
     baselines = ["detector-hold", "pose-only-ukf"]
     errors_m = {"roft": 0.01, "detector-hold": 0.03, "pose-only-ukf": 0.04}
-    cells = [_fake_cell(tmp_path, t, DEFAULT_FLOW, e) for t, e in errors_m.items()]
+    cells = [
+        _fake_cell(tmp_path, t, DEFAULT_FLOW, e, seed=s)
+        for t, e in errors_m.items()
+        for s in (0, 1, 2)
+    ]
     scores = score_stress(
         cells, tmp_path, {"bvh-002_06": "holdout"}, subject="roft", baselines=baselines
     )
@@ -376,4 +435,5 @@ def test_random_mixes_run_as_fault_files_named_by_their_stem(tmp_path: Path) -> 
     )
     report = format_stress_report(result, subject="roft", baselines=baselines)
     assert "| mix-7 | roft |" in report and str(tmp_path) not in report
-    assert "under 0/1 presets; fails: mix-7: ADD-AUC" in report
+    assert "under 0/1 presets (paired 95 % intervals, at least 1 replicate each: " in report
+    assert "; fails: mix-7: ADD-AUC" in report
