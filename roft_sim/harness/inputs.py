@@ -10,20 +10,20 @@ set named ``gt``.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from roft_sim.datasets.base import GT_MASK_SET, DetectorPoses, Sequence
+from roft_sim.datasets.base import GT_MASK_SET, Sequence
 from roft_sim.datasets.frames import GT_FULL_MASK_SET
 from roft_sim.errors import AssetNotFoundError, ConfigError
 from roft_sim.geometry.camera import CameraIntrinsics
 from roft_sim.harness.options import AUTO, GT_SET, NO_SET, RunOptions
-from roft_sim.records import DepthRenderer, FlowField, ObjectModel, PoseTrack
+from roft_sim.harness.pose_sets import WithGroundTruthPoses, WithRedrawnPoses, redraw_seed
+from roft_sim.records import DepthRenderer, ObjectModel
 
 F32 = NDArray[np.float32]
 F64 = NDArray[np.float64]
@@ -50,95 +50,6 @@ DepthRendererFactory = Callable[[ObjectModel], DepthRenderer]
 """Builds the depth renderer of one object (injected into trackers that need one)."""
 
 
-class WithGroundTruthPoses:
-    """A :class:`~roft_sim.datasets.base.Sequence` that also offers its ground truth as the
-    detector pose set ``gt`` (every frame valid). Everything else is delegated unchanged.
-
-    Used for the "GT pose" ablation on datasets that store no ``gt`` pose set; the poses still go
-    through the fault stream (rate, delay, losses) like a detector's.
-    """
-
-    def __init__(self, sequence: Sequence) -> None:
-        gt = sequence.ground_truth()
-        if gt is None:
-            raise ConfigError(
-                f"sequence {sequence.name!r} has no ground truth, so it cannot feed ground-truth "
-                "poses (--poses gt); pick one of its pose sets: "
-                f"{list(sequence.pose_sets()) or 'none'}"
-            )
-        self._sequence = sequence
-        self._gt_poses = DetectorPoses(
-            T_cam_obj=np.array(gt.T_cam_obj, dtype=np.float64),
-            valid=np.ones(len(gt), dtype=bool),
-        )
-
-    @property
-    def inner(self) -> Sequence:
-        """The wrapped sequence."""
-        return self._sequence
-
-    @property
-    def name(self) -> str:
-        return self._sequence.name
-
-    @property
-    def object_name(self) -> str:
-        return self._sequence.object_name
-
-    @property
-    def intrinsics(self) -> CameraIntrinsics:
-        return self._sequence.intrinsics
-
-    @property
-    def fps(self) -> int:
-        return self._sequence.fps
-
-    def __len__(self) -> int:
-        return len(self._sequence)
-
-    def time_s(self, k: int) -> float:
-        return self._sequence.time_s(k)
-
-    def rgb(self, k: int) -> NDArray[np.uint8]:
-        return self._sequence.rgb(k)
-
-    def depth(self, k: int) -> F32:
-        return self._sequence.depth(k)
-
-    def flow_sets(self) -> tuple[str, ...]:
-        return self._sequence.flow_sets()
-
-    def flow(self, k: int, flow_set: str) -> FlowField | None:
-        return self._sequence.flow(k, flow_set)
-
-    def mask_sets(self) -> tuple[str, ...]:
-        return self._sequence.mask_sets()
-
-    def mask(self, k: int, mask_set: str) -> NDArray[np.bool_] | None:
-        return self._sequence.mask(k, mask_set)
-
-    def pose_sets(self) -> tuple[str, ...]:
-        inner = tuple(s for s in self._sequence.pose_sets() if s != GT_SET)
-        return (GT_SET, *inner)
-
-    def detector_poses(self, pose_set: str) -> DetectorPoses:
-        if pose_set == GT_SET:
-            return self._gt_poses
-        return self._sequence.detector_poses(pose_set)
-
-    def ground_truth(self) -> PoseTrack | None:
-        return self._sequence.ground_truth()
-
-    def camera_poses(self) -> F64:
-        return self._sequence.camera_poses()
-
-    def object_model(self) -> ObjectModel | None:
-        return self._sequence.object_model()
-
-    def metadata(self) -> Mapping[str, Any]:
-        return self._sequence.metadata()
-
-
 @dataclass(frozen=True, slots=True, kw_only=True)
 class ResolvedInputs:
     """The concrete inputs of one sequence (what ``auto`` became)."""
@@ -161,9 +72,7 @@ def _resolve_pose_set(sequence: Sequence, choice: str) -> tuple[Sequence, str | 
     available = tuple(sequence.pose_sets())
     if choice == NO_SET:
         return sequence, None
-    if choice.startswith("redraw:"):  # a fresh draw of the pose detector (detector_draws)
-        from roft_sim.harness.detector_draws import WithRedrawnPoses, redraw_seed
-
+    if choice.startswith("redraw:"):  # a fresh draw of the pose detector (pose_sets)
         seed = redraw_seed(choice)
         assert seed is not None
         return WithRedrawnPoses(sequence, seed), choice

@@ -68,7 +68,7 @@ class RunOptions:
     detections: the "GT pose" ablation; taken from the sequence's ground truth when it stores no
     ``gt`` set), ``none``, ``auto`` (``dope`` when present, else the first set other than
     ``gt``), or ``redraw:<k>`` (the DOPE-like estimator drawn again with seed k on the ground
-    truth: :mod:`roft_sim.harness.detector_draws`)."""
+    truth: :mod:`roft_sim.harness.pose_sets`)."""
     masks: str = AUTO
     """Mask set: a set name, ``gt`` (ground-truth visible masks: the "GT segm." ablation),
     ``none``, or ``auto`` (the first detector set)."""

@@ -39,6 +39,13 @@ from roft_sim.harness.cells import (
 from roft_sim.harness.inputs import check_inputs
 from roft_sim.harness.options import PAPER_INVALID, RunOptions
 from roft_sim.harness.outputs import write_json
+from roft_sim.harness.paper_seeds import (
+    PaperLayout,
+    paper_seeds,
+    seed_poses,
+    uncertainty_json,
+    uncertainty_markdown,
+)
 from roft_sim.harness.run_dataset import find_sequences
 from roft_sim.metrics import SequenceMetrics, concatenate_metrics, policy_note
 from roft_sim.report.paper_reference import ALL, PaperTables, paper_tables
@@ -259,7 +266,6 @@ def plan_paper(
     Raises:
         ConfigError: a bad seed or flow spec, or a sequence that cannot feed a row's inputs.
     """
-    from roft_sim.harness.paper_seeds import paper_seeds, seed_poses
 
     faults = load_faults(PAPER_FAULTS)
     sequences = [(str(Path(p).resolve()), open_sequence(p)) for p in sequence_paths]
@@ -1064,6 +1070,11 @@ def write_paper_tables(
     return path, findings
 
 
+PAPER_LAYOUT = PaperLayout(side_by_side=_SIDE_BY_SIDE, table4_order=table4_order)
+"""The paper tables' layout for the intervals over the seeds
+(:mod:`roft_sim.harness.paper_seeds`)."""
+
+
 def _seed_intervals(
     tables_md: Path,
     cells: Sequence[SweepCell],
@@ -1073,20 +1084,18 @@ def _seed_intervals(
 ) -> dict[str, Any]:
     """Appends the section on the intervals over the seeds to ``tables_md``; returns its JSON
     (:mod:`roft_sim.harness.paper_seeds`)."""
-    from roft_sim.harness.paper_seeds import (
-        metrics_by_seed,
-        uncertainty_json,
-        uncertainty_markdown,
-    )
-
     paper = paper_tables()
-    by_seed = metrics_by_seed(cells, records, cells_dir)
+    by_seed = {
+        s: paper_metrics([c for c in cells if c.options.seed == s], records, cells_dir)
+        for s in sorted({c.options.seed for c in cells})
+    }
     entries = _table_entries(results, paper)
     configurations = checked_configurations(results)
-    section = uncertainty_markdown(by_seed, paper, entries, configurations)
+    layout = PAPER_LAYOUT
+    section = uncertainty_markdown(by_seed, paper, entries, configurations, layout)
     text = tables_md.read_text(encoding="utf-8")
     atomic_write_text(tables_md, text + "\n" + "\n".join(section))
-    return uncertainty_json(by_seed, paper, entries, configurations)
+    return uncertainty_json(by_seed, paper, entries, configurations, layout)
 
 
 def run_paper(

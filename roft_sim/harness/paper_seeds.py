@@ -3,7 +3,7 @@
 Seeds ``s0 .. s0 + N - 1`` (``s0`` = ``--seed``) are run seeds (fault stream, tracker, flow
 noise); the first keeps the dataset's stored detector draw, so ``--seeds 1`` is the plain run,
 and each further seed ``s`` feeds rows that read the detector's poses a fresh draw
-``redraw:<s>`` (:mod:`roft_sim.harness.detector_draws`): under the ``paper`` preset, whose rate
+``redraw:<s>`` (:mod:`roft_sim.harness.pose_sets`): under the ``paper`` preset, whose rate
 and delay are fixed, the detector draw is what varies.
 
 Per row, per object and ALL, the metric of each seed (its frames pooled as in the tables) gives
@@ -18,14 +18,13 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Sequence
-from pathlib import Path
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from roft_sim.harness.cells import SweepCell
-from roft_sim.harness.detector_draws import redraw_set
+from roft_sim.harness.pose_sets import redraw_set
 from roft_sim.harness.replicates import stable_rng
 from roft_sim.metrics.statistics import (
     INTERVAL_METHOD,
@@ -40,7 +39,7 @@ from roft_sim.report.tables import Column, markdown_table
 __all__ = [
     "paper_seeds",
     "seed_poses",
-    "metrics_by_seed",
+    "PaperLayout",
     "noise_tables",
     "tau_intervals",
     "uncertainty_markdown",
@@ -49,6 +48,21 @@ __all__ = [
 
 RowMetrics = dict[str, dict[str, float | None]]
 BySeed = dict[int, dict[str, RowMetrics]]
+OrderFunction = Callable[..., Any]
+"""``table4_order(results, paper, *, configuration=...)`` of :mod:`roft_sim.harness.paper`."""
+
+
+@dataclass(frozen=True)
+class PaperLayout:
+    """What the paper run's tables are made of, handed in by :mod:`roft_sim.harness.paper`
+    (which imports this module, not the other way round)."""
+
+    side_by_side: Sequence[tuple[str, str, str]]
+    """The rows shown next to the paper's: ``(paper method, row key, label)``."""
+    table4_order: OrderFunction
+    """The Table IV order of a configuration's rows (with Kendall's tau)."""
+
+
 """Seed -> row key -> entry (object or ALL) -> metric -> value."""
 
 _METRICS = (
@@ -69,19 +83,6 @@ def seed_poses(row_poses: str, seed: int, first_seed: int) -> str:
     return redraw_set(seed) if row_poses == "auto" and seed != first_seed else row_poses
 
 
-def metrics_by_seed(
-    cells: Sequence[SweepCell], records: dict[str, dict[str, Any]], cells_dir: Path
-) -> BySeed:
-    """:func:`~roft_sim.harness.paper.paper_metrics` of each seed's cells."""
-    from roft_sim.harness.paper import paper_metrics
-
-    seeds = sorted({c.options.seed for c in cells})
-    return {
-        s: paper_metrics([c for c in cells if c.options.seed == s], records, cells_dir)
-        for s in seeds
-    }
-
-
 def _values(by_seed: BySeed, row: str, entry: str, metric: str) -> list[float]:
     out = []
     for results in by_seed.values():
@@ -91,15 +92,13 @@ def _values(by_seed: BySeed, row: str, entry: str, metric: str) -> list[float]:
 
 
 def noise_tables(
-    by_seed: BySeed, paper: PaperTables, entries: Sequence[str]
+    by_seed: BySeed, paper: PaperTables, entries: Sequence[str], layout: PaperLayout
 ) -> dict[str, tuple[list[Column], list[dict[str, Any]]]]:
     """Per Table I metric, per object and ALL, for DOPE and ROFT (reference config, our
     default): the paper's number, the simulated mean over the seeds with its interval, sim -
     paper, and whether the paper's number lies inside the interval."""
-    from roft_sim.harness.paper import _SIDE_BY_SIDE  # the side-by-side rows, kept in step
-
     run = {k for results in by_seed.values() for k in results}
-    present = [(m, k, label) for m, k, label in _SIDE_BY_SIDE if k in run]
+    present = [(m, k, label) for m, k, label in layout.side_by_side if k in run]
     out = {}
     for metric, title in _METRICS:
         columns = [Column("entry", "object", align="left")]
@@ -135,11 +134,11 @@ def noise_tables(
 
 
 def tau_intervals(
-    by_seed: BySeed, paper: PaperTables, configurations: Sequence[str]
+    by_seed: BySeed, paper: PaperTables, configurations: Sequence[str], layout: PaperLayout
 ) -> list[dict[str, Any]]:
     """Per configuration and metric, Kendall's tau of the Table IV order on the mean over the
     seeds, with its percentile bootstrap interval over the seeds."""
-    from roft_sim.harness.paper import table4_order
+    table4_order = layout.table4_order
 
     seeds = list(by_seed)
     rows = sorted({k for results in by_seed.values() for k in results})
@@ -190,11 +189,15 @@ def _inside_sentences(tables: dict[str, tuple[list[Column], list[dict[str, Any]]
 
 
 def uncertainty_markdown(
-    by_seed: BySeed, paper: PaperTables, entries: Sequence[str], configurations: Sequence[str]
+    by_seed: BySeed,
+    paper: PaperTables,
+    entries: Sequence[str],
+    configurations: Sequence[str],
+    layout: PaperLayout,
 ) -> list[str]:
     """The ``tables.md`` section of a run over several seeds (module docstring)."""
     seeds = list(by_seed)
-    tables = noise_tables(by_seed, paper, entries)
+    tables = noise_tables(by_seed, paper, entries, layout)
     md = [
         f"## Over {len(seeds)} seeds: which differences from the paper are inside the noise",
         "",
@@ -211,13 +214,17 @@ def uncertainty_markdown(
     for title, (columns, rows) in tables.items():
         md += [f"### {title}", "", markdown_table(columns, rows)]
     md += ["### Kendall tau of the Table IV order, with its interval over the seeds", ""]
-    for t in tau_intervals(by_seed, paper, configurations):
+    for t in tau_intervals(by_seed, paper, configurations, layout):
         md.append(f"- `{t['configuration']}`, {t['metric']}: tau {t['tau'].text('+.3f')}")
     return [*md, ""]
 
 
 def uncertainty_json(
-    by_seed: BySeed, paper: PaperTables, entries: Sequence[str], configurations: Sequence[str]
+    by_seed: BySeed,
+    paper: PaperTables,
+    entries: Sequence[str],
+    configurations: Sequence[str],
+    layout: PaperLayout,
 ) -> dict[str, Any]:
     """The same as JSON-ready data for ``paper.json``."""
 
@@ -235,10 +242,10 @@ def uncertainty_json(
             title: [
                 {k: v for k, v in r.items() if not k.endswith((":noise", ":sim"))} for r in rows
             ]
-            for title, (_, rows) in noise_tables(by_seed, paper, entries).items()
+            for title, (_, rows) in noise_tables(by_seed, paper, entries, layout).items()
         },
         "kendall_tau": [
             {"configuration": t["configuration"], "metric": t["metric"], **interval(t["tau"])}
-            for t in tau_intervals(by_seed, paper, configurations)
+            for t in tau_intervals(by_seed, paper, configurations, layout)
         ],
     }

@@ -13,7 +13,7 @@ from roft_sim.cli import main
 from roft_sim.datasets import open_sequence
 from roft_sim.harness.inputs import resolve_inputs
 from roft_sim.harness.options import RunOptions
-from roft_sim.harness.paper import paper_rows, plan_paper
+from roft_sim.harness.paper import PAPER_LAYOUT, paper_rows, plan_paper
 from roft_sim.harness.paper_seeds import noise_tables, seed_poses, uncertainty_markdown
 from roft_sim.report.paper_reference import ALL, paper_tables
 
@@ -50,11 +50,11 @@ def test_the_noise_section_says_which_differences_lie_inside() -> None:
         for j, row in enumerate(rows):
             results[row] = {ALL: {"add_auc_pct": roft + 10.0 - 5.0 * j + 0.1 * i}}
         by_seed[s] = results
-    columns, table = noise_tables(by_seed, paper, [ALL])["ADD-AUC (%)"]
+    columns, table = noise_tables(by_seed, paper, [ALL], PAPER_LAYOUT)["ADD-AUC (%)"]
     row = table[0]
     assert row["detector:inside"] is True and row["detector:noise"] == "yes"
     assert row["roft:inside"] is False and row["roft:diff"] == pytest.approx(10.1)
-    md = "\n".join(uncertainty_markdown(by_seed, paper, [ALL], ["roft"]))
+    md = "\n".join(uncertainty_markdown(by_seed, paper, [ALL], ["roft"], PAPER_LAYOUT))
     assert "- DOPE (5 fps, held), ADD-AUC (%): inside the noise: ALL; outside: none" in md
     assert "- ROFT, our default, ADD-AUC (%): inside the noise: none; outside: ALL (+10.10)" in md
     assert "- `roft`, add_auc_pct: tau " in md
