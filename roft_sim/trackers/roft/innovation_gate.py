@@ -40,10 +40,10 @@ from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import stats
 
 from roft_sim.geometry.so3 import quat_angle
 from roft_sim.trackers.roft.config import PoseGateConfig
+from roft_sim.trackers.roft.medians import chi2_quantile
 
 F64 = NDArray[np.float64]
 
@@ -86,7 +86,7 @@ def initial_spread(gate: PoseGateConfig) -> InnovationSpread:
 
 @lru_cache(maxsize=8)
 def _chi2_3(probability: float) -> float:
-    return float(stats.chi2.ppf(probability, 3))
+    return chi2_quantile(probability, 3)
 
 
 def squared_innovations(

@@ -32,14 +32,13 @@ from typing import Literal
 import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.stats import chi2
 
 from roft_sim.geometry.camera import CameraIntrinsics, backproject_pixels, project_points
 from roft_sim.geometry.so3 import so3_exp_and_left_jacobian
 from roft_sim.records import FlowField
 from roft_sim.trackers.roft.config import VelocityKFConfig
 from roft_sim.trackers.roft.mask_sync import PixelSet, lookup_flow, mask_window
-from roft_sim.trackers.roft.medians import MAD_TO_SIGMA, column_medians, median
+from roft_sim.trackers.roft.medians import MAD_TO_SIGMA, chi2_quantile, column_medians, median
 
 F64 = NDArray[np.float64]
 
@@ -465,7 +464,7 @@ def occluder_free(
     residual = y[on_main] - flow_rows_at(J[on_main], twist)
     # per-component flow variance: the median of |r|^2 (chi-square, 2 dof: median 1.386 s^2) / 2
     var_px2 = max(median(np.sum(residual * residual, axis=1)) / (2.0 * 1.3863), 1e-12)
-    limit = float(chi2.ppf(config.occluder_probability, 2))
+    limit = chi2_quantile(config.occluder_probability, 2)
     z_main = median(z[on_main])
     for label in np.unique(part[(part != 0) & ~on_main]):
         idx = np.flatnonzero(part == label)
