@@ -10,7 +10,6 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
-#include <iostream>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -216,7 +215,7 @@ int main() {
       }
     }
   } catch (const std::exception& e) {
-    std::cerr << "cv_tracker: " << e.what() << std::endl;
+    std::fprintf(stderr, "cv_tracker: %s\n", e.what());
     write_frame(error(e.what()));
     return 1;
   }
