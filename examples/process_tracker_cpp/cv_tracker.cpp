@@ -172,12 +172,17 @@ struct Tracker {
   }
 };
 
+// "shm": true accepts large arrays (images, flow, masks) in the shared file that hello offers:
+// this tracker reads none of them, so they cost it nothing. A tracker that reads them opens
+// hello["shm"]["path"] before replying and reads each at its "shm_offset" (docs/process.md);
+// replying false gets them inline as "data" instead.
 std::string ready() {
   Writer w;
-  w.map(3);
+  w.map(4);
   w.key("type"); w.str("ready");
   w.key("protocol"); w.integer(kProtocolVersion);
   w.key("name"); w.str("cv_tracker_cpp");
+  w.key("shm"); w.boolean(true);
   return w.out;
 }
 

@@ -138,6 +138,22 @@ def test_the_plugin_server_reports_unknown_names_and_missing_renderers(capsys):
     assert "python -m roft_sim.harness.process_server roft" in reply["message"]
 
 
+def test_the_shared_file_is_unnamed_after_hello_and_used_only_when_accepted(tiny_seq, observations):
+    example = Path(__file__).resolve().parents[2] / "examples" / "process_tracker_cpp"
+    context = make_context(tiny_seq, renderer=False)
+    with ProcessTracker([sys.executable, str(example / "cv_tracker.py")], context) as tracker:
+        assert tracker._shared is not None  # the Python server accepts it
+        assert not os.path.exists(tracker._shared.path)  # no file left behind, whatever happens
+        tracker.reset(None)
+        assert tracker.step(observations[0]).valid
+    declining = _child("ok", tiny_seq)  # replies ready without "shm"
+    assert declining._shared is None
+    declining.reset(None)
+    assert declining.step(observations[0]).k == 0
+    declining.close()
+    _assert_reaped(declining.pid)
+
+
 def test_names_and_command_lines():
     assert (
         process_tracker_spec("python -m roft_sim.harness.process_server roft").name

@@ -24,9 +24,21 @@ from roft_sim.records import (  # noqa: E402
 from roft_sim.testing import assert_pose_close  # noqa: E402
 from roft_sim.trackers.process import codec  # noqa: E402
 from roft_sim.trackers.process.codec import ProtocolError  # noqa: E402
+from roft_sim.trackers.process.shared import SharedReader, SharedWriter  # noqa: E402
 
 ATOL_M = 1e-15
 ATOL_RAD = 1e-15
+
+
+@pytest.fixture(scope="module")
+def shared():
+    """A small shared file taking every array of 1 byte or more (what does not fit: inline)."""
+    writer = SharedWriter(4096, min_bytes=1)
+    reader = SharedReader(writer.path, writer.size_bytes)
+    writer.unlink()
+    yield writer, reader
+    reader.close()
+    writer.close()
 
 
 def _wire(message):
@@ -78,9 +90,14 @@ def observations(draw):
 
 
 @settings(max_examples=40, deadline=None, derandomize=True)
-@given(observations())
-def test_an_observation_crosses_unchanged(observation):
-    got = codec.observation_from_message(_wire(codec.observation_message(observation)))
+@given(observations(), st.booleans())
+def test_an_observation_crosses_unchanged(shared, observation, through_shared_file):
+    """Inline, or through the shared file (the arrays that fit; the others inline)."""
+    writer, reader = shared if through_shared_file else (None, None)
+    message = _wire(codec.observation_message(observation, writer))
+    if writer is not None and observation.rgb is not None:
+        assert "shm_offset" in message["rgb"]  # the first array always fits
+    got = codec.observation_from_message(message, shared=reader)
     assert (got.k, got.t_s) == (observation.k, observation.t_s)
     for name in ("rgb", "depth_m"):
         a, b = getattr(got, name), getattr(observation, name)
@@ -240,3 +257,11 @@ def test_a_wrong_image_shape_and_version_are_named():
         codec.check_ready({"type": "ready", "protocol": 2}, "hello")
     with pytest.raises(ProtocolError, match="not MessagePack"):
         codec.unpack(b"\xc1")
+    shared_rgb = {
+        "type": "observation",
+        "rgb": {"dtype": "uint8", "shape": [6, 8, 3], "shm_offset": 0},
+    }
+    with pytest.raises(
+        ProtocolError, match=r"observation\.rgb: received \['dtype', 'shape', 'shm_offset'\]"
+    ):
+        codec.observation_from_message(message | shared_rgb)  # no shared file was agreed

@@ -31,6 +31,7 @@ from roft_sim.records import Estimate, Observation
 from roft_sim.trackers.base import TrackerContext, TrackerSpec
 from roft_sim.trackers.process import codec
 from roft_sim.trackers.process.codec import ProtocolError, TrackerProcessError
+from roft_sim.trackers.process.shared import SharedWriter
 from roft_sim.trackers.process.transport import (
     Deadline,
     EndOfStream,
@@ -52,6 +53,9 @@ PROCESS_PREFIX = "process:"
 
 _log = logging.getLogger(__name__)
 _SEED_BOUND = 2**63
+_SHARED_BYTES_PER_PIXEL = 18
+"""Shared file size per image pixel: rgb 3, depth 4, full-resolution flow 8 and validity 1,
+two masks 2 [bytes]; what does not fit goes inline."""
 _T = TypeVar("_T")
 
 
@@ -68,6 +72,9 @@ class ProcessTrackerConfig:
     """How long a child may take to exit after ``bye`` before it is killed [s]."""
     stderr_tail_lines: int = 40
     """Lines of the child's stderr kept and quoted in errors."""
+    shared_memory: bool = True
+    """Offer the child a shared file for large arrays (images, flow, masks); a child that
+    accepts gets them without a copy through the pipe (docs/process.md)."""
 
     def __post_init__(self) -> None:
         for name in ("step_timeout_s", "start_timeout_s", "exit_timeout_s"):
@@ -99,6 +106,15 @@ class _StderrTail:
         """The kept lines (after waiting up to ``wait_s`` for the pipe to close)."""
         self._thread.join(wait_s)
         return "\n".join(self._lines)
+
+
+def _release(process: subprocess.Popen[bytes], shared: SharedWriter | None) -> None:
+    """Kills and reaps the child (:func:`_kill`), and removes the shared file."""
+    try:
+        _kill(process)
+    finally:
+        if shared is not None:
+            shared.close()
 
 
 def _kill(process: subprocess.Popen[bytes]) -> None:
@@ -150,7 +166,11 @@ class ProcessTracker:
             raise TrackerProcessError(
                 f"tracker process {name!r}: cannot start {shlex.join(self.command)!r}: {e}"
             ) from e
-        self._finalizer = weakref.finalize(self, _kill, self._process)
+        self._shared: SharedWriter | None = None
+        if self.config.shared_memory:
+            pixels = context.intrinsics.width_px * context.intrinsics.height_px
+            self._shared = SharedWriter(pixels * _SHARED_BYTES_PER_PIXEL + 16 * 64)
+        self._finalizer = weakref.finalize(self, _release, self._process, self._shared)
         assert self._process.stdin is not None and self._process.stdout is not None  # PIPE
         self._stdin = self._process.stdin.fileno()
         self._stdout = self._process.stdout.fileno()
@@ -164,9 +184,15 @@ class ProcessTracker:
             fps=context.fps,
             object_model=context.object_model,
             seed=int(context.rng.integers(_SEED_BOUND)),
+            shared=self._shared,
         )
-        reply = self._call(hello, self.config.start_timeout_s, "hello")
-        self._guard("hello", lambda: codec.check_ready(reply, "hello"))
+        try:
+            reply = self._call(hello, self.config.start_timeout_s, "hello")
+        finally:
+            if self._shared is not None:
+                self._shared.unlink()  # the child opened it (or never will)
+        if not self._guard("hello", lambda: codec.check_ready(reply, "hello")):
+            self._shared = None  # the child takes every array inline
 
     @property
     def pid(self) -> int:
@@ -181,7 +207,7 @@ class ProcessTracker:
     def step(self, observation: Observation) -> Estimate:
         """Sends observation ``k`` and returns the child's estimate for it."""
         doing = f"observation k={observation.k}"
-        message = self._guard(doing, lambda: codec.observation_message(observation))
+        message = self._guard(doing, lambda: codec.observation_message(observation, self._shared))
         reply = self._call(message, self.config.step_timeout_s, doing)
         return self._guard(doing, lambda: codec.estimate_from_message(reply, k=observation.k))
 

@@ -33,6 +33,7 @@ from roft_sim.records import (
     Observation,
     PoseDetection,
 )
+from roft_sim.trackers.process.shared import SharedReader, SharedWriter
 
 __all__ = [
     "PROTOCOL_VERSION",
@@ -79,6 +80,7 @@ _DTYPES: dict[str, np.dtype[Any]] = {
     "float64": np.dtype("<f8"),
 }
 _ARRAY_KEYS = frozenset({"dtype", "shape", "data"})
+_SHARED_ARRAY_KEYS = frozenset({"dtype", "shape", "shm_offset"})
 
 
 class TrackerProcessError(PluginError):
@@ -175,11 +177,15 @@ def _ids(message: Mapping[str, Any], where: str, key: str) -> tuple[int, ...]:
 
 
 # ----------------------------------------------------------------------------------- arrays
-def array_message(array: NDArray[Any]) -> dict[str, Any]:
-    """``{"dtype", "shape", "data"}`` of ``array`` (data: C-order little-endian bytes)."""
+def array_message(array: NDArray[Any], shared: SharedWriter | None = None) -> dict[str, Any]:
+    """``{"dtype", "shape", "data"}`` of ``array`` (data: C-order little-endian bytes), or
+    ``{"dtype", "shape", "shm_offset"}`` when ``shared`` takes it."""
     for name, dtype in _DTYPES.items():
         if array.dtype == dtype or array.dtype == dtype.newbyteorder("="):
             data = np.ascontiguousarray(array, dtype=dtype)
+            offset = None if shared is None else shared.place(data)
+            if offset is not None:
+                return {"dtype": name, "shape": list(array.shape), "shm_offset": offset}
             return {"dtype": name, "shape": list(array.shape), "data": data.data}
     raise ProtocolError(f"array of dtype {array.dtype} cannot be sent; expected one of {_DTYPES}")
 
@@ -191,6 +197,7 @@ def array_from_message(
     dtype: str,
     shape: Sequence[int | None],
     finite: bool = False,
+    shared: SharedReader | None = None,
 ) -> NDArray[Any]:
     """The array in ``value`` (an array map), checked against ``dtype`` and ``shape``.
 
@@ -200,11 +207,13 @@ def array_from_message(
         dtype: the expected dtype name (``float32``, ``uint8``, ...).
         shape: the expected shape; None matches any length.
         finite: reject NaN and infinity.
+        shared: the shared file, for arrays sent with ``shm_offset``.
 
     Returns:
-        A read-only view of the received buffer (no copy).
+        A read-only view of the received buffer (no copy), or a copy out of the shared file.
     """
-    if not isinstance(value, dict) or set(value) != _ARRAY_KEYS:
+    keys = set(value) if isinstance(value, dict) else None
+    if keys != _ARRAY_KEYS and (keys != _SHARED_ARRAY_KEYS or shared is None):
         got = sorted(value) if isinstance(value, dict) else type(value).__name__
         raise ProtocolError(f"{field}: received {got}, expected an array map {sorted(_ARRAY_KEYS)}")
     if value["dtype"] != dtype:
@@ -219,8 +228,17 @@ def array_from_message(
     if not ok:
         wanted = "[" + ", ".join("N" if s is None else str(s) for s in shape) + "]"
         raise ProtocolError(f"{field}: received shape {got_shape!r}, expected {wanted}")
-    data = value["data"]
     np_dtype = _DTYPES[dtype]
+    if "shm_offset" in value:
+        assert shared is not None  # checked with the keys
+        try:
+            array = shared.copy(value["shm_offset"], np_dtype, tuple(got_shape))
+        except (TypeError, ValueError) as e:
+            raise ProtocolError(
+                f"{field}: shm_offset {value['shm_offset']!r} is outside the shared file ({e})"
+            ) from None
+        return _finite(array, field) if finite else array
+    data = value["data"]
     n_bytes = math.prod(got_shape) * np_dtype.itemsize
     if not isinstance(data, bytes | bytearray | memoryview) or len(data) != n_bytes:
         size = len(data) if isinstance(data, bytes | bytearray | memoryview) else "no"
@@ -229,7 +247,11 @@ def array_from_message(
             f"{dtype}"
         )
     array = np.frombuffer(data, dtype=np_dtype).reshape(got_shape)
-    if finite and not np.isfinite(array).all():
+    return _finite(array, field) if finite else array
+
+
+def _finite(array: NDArray[Any], field: str) -> NDArray[Any]:
+    if not np.isfinite(array).all():
         bad = np.argwhere(~np.isfinite(array))[0].tolist()
         raise ProtocolError(
             f"{field}: received {array[tuple(bad)]} at index {bad}, expected finite numbers"
@@ -266,7 +288,7 @@ def _vector(message: Mapping[str, Any], where: str, key: str, n: int) -> NDArray
 
 # --------------------------------------------------------------------------------- handshake
 _INTRINSICS = ("fx_px", "fy_px", "cx_px", "cy_px", "width_px", "height_px")
-_HELLO_KEYS = frozenset({"type", "protocol", "intrinsics", "fps", "object", "seed"})
+_HELLO_KEYS = frozenset({"type", "protocol", "intrinsics", "fps", "object", "seed", "shm"})
 _OBJECT_KEYS = frozenset({"name", "vertices_m", "faces", "model_points_m"})
 
 
@@ -280,9 +302,15 @@ def _check_version(message: Mapping[str, Any], where: str) -> None:
 
 
 def hello_message(
-    *, intrinsics: CameraIntrinsics, fps: int, object_model: ObjectModel, seed: int
+    *,
+    intrinsics: CameraIntrinsics,
+    fps: int,
+    object_model: ObjectModel,
+    seed: int,
+    shared: SharedWriter | None = None,
 ) -> dict[str, Any]:
-    """The first message to the child: the protocol version and the tracker's context."""
+    """The first message to the child: the protocol version, the tracker's context and the
+    shared file offered for large arrays (if any)."""
     return {
         "type": "hello",
         "protocol": PROTOCOL_VERSION,
@@ -295,6 +323,7 @@ def hello_message(
             "model_points_m": array_message(object_model.model_points_m),
         },
         "seed": int(seed),
+        "shm": None if shared is None else {"path": shared.path, "bytes": shared.size_bytes},
     }
 
 
@@ -310,6 +339,10 @@ class HelloContent:
     """The tracked object's mesh and model points (object frame, [m])."""
     seed: int
     """Seed of the tracker's random generator."""
+    shm_path: str | None = None
+    """The shared file offered for large arrays, or None."""
+    shm_bytes: int = 0
+    """Its size [bytes]."""
 
 
 def context_from_hello(message: Mapping[str, Any]) -> HelloContent:
@@ -351,27 +384,40 @@ def context_from_hello(message: Mapping[str, Any]) -> HelloContent:
         ),
     )
     fps = _int(message, "hello", "fps")
+    shm = _get(message, "hello", "shm", optional=True)
+    if shm is not None and not (
+        isinstance(shm, dict)
+        and isinstance(shm.get("path"), str)
+        and isinstance(shm.get("bytes"), int)
+    ):
+        raise ProtocolError(f"hello.shm: received {shm!r}, expected nil or {{path, bytes}}")
     return HelloContent(
         intrinsics=CameraIntrinsics(**values),
         fps=fps,
         object_model=model,
         seed=_int(message, "hello", "seed"),
+        shm_path=None if shm is None else shm["path"],
+        shm_bytes=0 if shm is None else shm["bytes"],
     )
 
 
-def ready_message(name: str) -> dict[str, Any]:
-    """The child's reply to ``hello`` and ``reset``."""
-    return {"type": "ready", "protocol": PROTOCOL_VERSION, "name": name}
+def ready_message(name: str, *, shm: bool = False) -> dict[str, Any]:
+    """The child's reply to ``hello`` (``shm``: it takes large arrays through the shared file)
+    and ``reset``."""
+    return {"type": "ready", "protocol": PROTOCOL_VERSION, "name": name, "shm": shm}
 
 
-def check_ready(message: Mapping[str, Any], after: str) -> str:
-    """Checks a ``ready`` (the reply to ``after``); returns the tracker's name."""
+def check_ready(message: Mapping[str, Any], after: str) -> bool:
+    """Checks a ``ready`` (the reply to ``after``); returns whether the child takes large
+    arrays through the shared file."""
     check_type(message, "ready")
     where = f"ready (reply to {after})"
-    _check_keys(message, where, frozenset({"type", "protocol", "name"}))
+    _check_keys(message, where, frozenset({"type", "protocol", "name", "shm"}))
     _check_version(message, where)
-    name = _get(message, where, "name", optional=True)
-    return name if isinstance(name, str) else ""
+    shm = _get(message, where, "shm", optional=True)
+    if shm is not None and not isinstance(shm, bool):
+        raise ProtocolError(f"{where}.shm: received {shm!r}, expected true or false")
+    return bool(shm)
 
 
 def error_message(text: str) -> dict[str, Any]:
@@ -428,31 +474,38 @@ _POSE_KEYS = frozenset({"capture_k", "arrival_k", "detection_id", "t_m", "q_wxyz
 _MASK_KEYS = frozenset({"capture_k", "arrival_k", "detection_id", "mask"})
 
 
-def _optional_array(array: NDArray[Any] | None) -> dict[str, Any] | None:
-    return None if array is None else array_message(array)
+def _optional_array(
+    array: NDArray[Any] | None, shared: SharedWriter | None = None
+) -> dict[str, Any] | None:
+    return None if array is None else array_message(array, shared)
 
 
-def _flow_message(flow: FlowField | None) -> dict[str, Any] | None:
+def _flow_message(flow: FlowField | None, shared: SharedWriter | None) -> dict[str, Any] | None:
     if flow is None:
         return None
     return {
-        "flow_px": array_message(flow.flow_px),
+        "flow_px": array_message(flow.flow_px, shared),
         "from_k": int(flow.from_k),
         "to_k": int(flow.to_k),
         "grid_px": int(flow.grid_px),
-        "valid": _optional_array(flow.valid),
+        "valid": _optional_array(flow.valid, shared),
     }
 
 
-def observation_message(observation: Observation) -> dict[str, Any]:
-    """Camera frame ``observation.k``: images, flow, and the detections that arrived at it."""
+def observation_message(
+    observation: Observation, shared: SharedWriter | None = None
+) -> dict[str, Any]:
+    """Camera frame ``observation.k``: images, flow, and the detections that arrived at it
+    (large arrays through ``shared`` when given: it is rewritten from its start)."""
+    if shared is not None:
+        shared.start()
     return {
         "type": "observation",
         "k": int(observation.k),
         "t_s": float(observation.t_s),
-        "rgb": _optional_array(observation.rgb),
-        "depth_m": _optional_array(observation.depth_m),
-        "flow": _flow_message(observation.flow),
+        "rgb": _optional_array(observation.rgb, shared),
+        "depth_m": _optional_array(observation.depth_m, shared),
+        "flow": _flow_message(observation.flow, shared),
         "poses": [
             {
                 "capture_k": int(p.capture_k),
@@ -467,21 +520,25 @@ def observation_message(observation: Observation) -> dict[str, Any]:
                 "capture_k": int(m.capture_k),
                 "arrival_k": int(m.arrival_k),
                 "detection_id": int(m.detection_id),
-                "mask": array_message(m.mask),
+                "mask": array_message(m.mask, shared),
             }
             for m in observation.masks
         ],
     }
 
 
-def _flow_from_message(raw: Any, where: str) -> FlowField | None:
+def _flow_from_message(raw: Any, where: str, shared: SharedReader | None) -> FlowField | None:
     if raw is None:
         return None
     if not isinstance(raw, dict):
         raise ProtocolError(f"{where}: received {raw!r}, expected a map or nil")
     _check_keys(raw, where, _FLOW_KEYS)
     flow_px = array_from_message(
-        _get(raw, where, "flow_px"), f"{where}.flow_px", dtype="float32", shape=(None, None, 2)
+        _get(raw, where, "flow_px"),
+        f"{where}.flow_px",
+        dtype="float32",
+        shape=(None, None, 2),
+        shared=shared,
     )
     valid = _get(raw, where, "valid", optional=True)
     return FlowField(
@@ -491,7 +548,9 @@ def _flow_from_message(raw: Any, where: str) -> FlowField | None:
         grid_px=_int(raw, where, "grid_px"),
         valid=None
         if valid is None
-        else array_from_message(valid, f"{where}.valid", dtype="bool", shape=flow_px.shape[:2]),
+        else array_from_message(
+            valid, f"{where}.valid", dtype="bool", shape=flow_px.shape[:2], shared=shared
+        ),
     )
 
 
@@ -503,7 +562,7 @@ def _list(message: Mapping[str, Any], where: str, key: str) -> list[Any]:
 
 
 def _detections(
-    message: Mapping[str, Any], hw: tuple[int, int] | None
+    message: Mapping[str, Any], hw: tuple[int, int] | None, shared: SharedReader | None
 ) -> tuple[tuple[PoseDetection, ...], tuple[MaskDetection, ...]]:
     poses = []
     for i, raw in enumerate(_list(message, "observation", "poses")):
@@ -522,7 +581,11 @@ def _detections(
         where = f"observation.masks[{i}]"
         _check_keys(raw, where, _MASK_KEYS)
         mask = array_from_message(
-            _get(raw, where, "mask"), f"{where}.mask", dtype="bool", shape=hw or (None, None)
+            _get(raw, where, "mask"),
+            f"{where}.mask",
+            dtype="bool",
+            shape=hw or (None, None),
+            shared=shared,
         )
         masks.append(
             MaskDetection(
@@ -536,26 +599,34 @@ def _detections(
 
 
 def observation_from_message(
-    message: Mapping[str, Any], *, intrinsics: CameraIntrinsics | None = None
+    message: Mapping[str, Any],
+    *,
+    intrinsics: CameraIntrinsics | None = None,
+    shared: SharedReader | None = None,
 ) -> Observation:
-    """Checks an ``observation`` (images at the ``intrinsics`` resolution when given)."""
+    """Checks an ``observation`` (images at the ``intrinsics`` resolution when given; arrays
+    with ``shm_offset`` copied out of ``shared``)."""
     check_type(message, "observation")
     _check_keys(message, "observation", _OBSERVATION_KEYS)
     hw = None if intrinsics is None else (intrinsics.height_px, intrinsics.width_px)
     h, w = hw if hw is not None else (None, None)
     rgb = _get(message, "observation", "rgb")
     depth = _get(message, "observation", "depth_m")
-    poses, masks = _detections(message, hw)
+    poses, masks = _detections(message, hw, shared)
     return Observation(
         k=_int(message, "observation", "k"),
         t_s=_float(message, "observation", "t_s"),
         rgb=None
         if rgb is None
-        else array_from_message(rgb, "observation.rgb", dtype="uint8", shape=(h, w, 3)),
+        else array_from_message(
+            rgb, "observation.rgb", dtype="uint8", shape=(h, w, 3), shared=shared
+        ),
         depth_m=None
         if depth is None
-        else array_from_message(depth, "observation.depth_m", dtype="float32", shape=(h, w)),
-        flow=_flow_from_message(_get(message, "observation", "flow"), "observation.flow"),
+        else array_from_message(
+            depth, "observation.depth_m", dtype="float32", shape=(h, w), shared=shared
+        ),
+        flow=_flow_from_message(_get(message, "observation", "flow"), "observation.flow", shared),
         poses=poses,
         masks=masks,
     )

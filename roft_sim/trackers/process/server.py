@@ -8,6 +8,7 @@ tracker (or a library it calls) cannot corrupt the protocol.
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import os
 import sys
 import traceback
@@ -21,12 +22,26 @@ from roft_sim.records import DepthRenderer, Estimate, ObjectModel
 from roft_sim.trackers.base import Tracker, TrackerContext, TrackerSpec, create_tracker
 from roft_sim.trackers.process import codec
 from roft_sim.trackers.process.codec import ProtocolError
+from roft_sim.trackers.process.shared import SharedReader
 from roft_sim.trackers.process.transport import read_frame, write_frame
 
 __all__ = ["serve", "serve_main", "TrackerFactory"]
 
 TrackerFactory = Callable[[TrackerContext], Tracker]
 """Builds the served tracker from the context that ``hello`` carried."""
+
+
+def _keep_freed_memory() -> None:
+    """Large arrays from the heap, and freed memory kept for reuse (glibc's ``mallopt``; a no-op
+    elsewhere). Each observation's arrays are fresh copies; without this, glibc maps new pages for
+    them and returns them on free, and the page faults cost more than the copies."""
+    try:
+        mallopt = ctypes.CDLL(None).mallopt
+    except (OSError, AttributeError):
+        return
+    m_trim_threshold, m_mmap_threshold = -1, -3
+    mallopt(m_mmap_threshold, 32 << 20)  # glibc's largest on 64-bit
+    mallopt(m_trim_threshold, 1 << 30)
 
 
 def _protocol_fds(stdin_fd: int | None, stdout_fd: int | None) -> tuple[int, int]:
@@ -67,7 +82,10 @@ def _factory_of(
     return spec.name, build
 
 
-def _start(read: Callable[[], dict[str, Any] | None], build: TrackerFactory) -> tuple[Tracker, Any]:
+def _start(
+    read: Callable[[], dict[str, Any] | None], build: TrackerFactory
+) -> tuple[Tracker, codec.HelloContent, SharedReader | None]:
+    """Reads ``hello``, builds the tracker and opens the shared file it offers."""
     hello = read()
     if hello is None:
         raise ProtocolError("the parent closed stdin before hello")
@@ -78,11 +96,21 @@ def _start(read: Callable[[], dict[str, Any] | None], build: TrackerFactory) -> 
         object_model=content.object_model,
         rng=np.random.default_rng(content.seed),
     )
-    return build(context), content.intrinsics
+    shared = None
+    if content.shm_path is not None:
+        shared = SharedReader(content.shm_path, content.shm_bytes)
+    return build(context), content, shared
 
 
-def _step(tracker: Tracker, message: dict[str, Any], intrinsics: Any) -> dict[str, Any]:
-    observation = codec.observation_from_message(message, intrinsics=intrinsics)
+def _step(
+    tracker: Tracker,
+    message: dict[str, Any],
+    hello: codec.HelloContent,
+    shared: SharedReader | None,
+) -> dict[str, Any]:
+    observation = codec.observation_from_message(
+        message, intrinsics=hello.intrinsics, shared=shared
+    )
     estimate = tracker.step(observation)
     if not isinstance(estimate, Estimate) or estimate.k != observation.k:
         got = getattr(estimate, "k", type(estimate).__name__)
@@ -117,6 +145,7 @@ def serve(
         as an ``error`` message and printed on stderr).
     """
     fd_in, fd_out = _protocol_fds(stdin_fd, stdout_fd)
+    _keep_freed_memory()
 
     def read() -> dict[str, Any] | None:
         payload = read_frame(fd_in)
@@ -127,14 +156,14 @@ def serve(
 
     try:
         name, build = _factory_of(tracker, config, depth_renderer_factory)
-        served, intrinsics = _start(read, build)
-        send(codec.ready_message(name))
+        served, hello, shared = _start(read, build)
+        send(codec.ready_message(name, shm=shared is not None))
         while (message := read()) is not None:
             kind = message["type"]
             if kind == "bye":
                 break
             if kind == "observation":
-                send(_step(served, message, intrinsics))
+                send(_step(served, message, hello, shared))
             elif kind == "reset":
                 served.reset(codec.initial_from_reset(message))
                 send(codec.ready_message(name))
