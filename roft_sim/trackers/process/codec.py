@@ -212,7 +212,7 @@ def array_from_message(
     Returns:
         A read-only view of the received buffer (no copy), or a copy out of the shared file.
     """
-    keys = set(value) if isinstance(value, dict) else None
+    keys = frozenset(value) if isinstance(value, dict) else frozenset()
     if keys != _ARRAY_KEYS and (keys != _SHARED_ARRAY_KEYS or shared is None):
         got = sorted(value) if isinstance(value, dict) else type(value).__name__
         raise ProtocolError(f"{field}: received {got}, expected an array map {sorted(_ARRAY_KEYS)}")
