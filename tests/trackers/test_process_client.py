@@ -122,20 +122,27 @@ def test_an_error_reply_and_a_missing_program_are_reported(tiny_seq, observation
         ProcessTracker(["/nonexistent/tracker"], make_context(tiny_seq, renderer=False))
 
 
-def test_the_plugin_server_reports_unknown_names_and_missing_renderers(capsys):
-    """In process (the child's code path, without the start-up of a child)."""
-    assert serve_main(["no-such-tracker"]) == 2
-    assert "no tracker named 'no-such-tracker'" in capsys.readouterr().err
+def _served_error(spec) -> str:
+    """The error message ``serve(spec)`` replies to a parent that sent nothing yet."""
     to_child, from_parent = os.pipe()
     to_parent, from_child = os.pipe()
     try:
-        assert serve(get_tracker_spec("roft"), stdin_fd=to_child, stdout_fd=from_child) == 1
+        assert serve(spec, stdin_fd=to_child, stdout_fd=from_child) == 1
         reply = codec.unpack(read_frame(to_parent))
     finally:
         for fd in (to_child, from_parent, to_parent, from_child):
             os.close(fd)
     assert reply["type"] == "error"
-    assert "python -m roft_sim.harness.process_server roft" in reply["message"]
+    return reply["message"]
+
+
+def test_the_plugin_server_reports_unknown_names_and_specs_it_cannot_serve(capsys):
+    """In process (the child's code path, without the start-up of a child)."""
+    assert serve_main(["no-such-tracker"]) == 2
+    assert "no tracker named 'no-such-tracker'" in capsys.readouterr().err
+    message = _served_error(get_tracker_spec("roft"))
+    assert "python -m roft_sim.harness.process_server roft" in message
+    assert "detection_mode 'ideal'" in _served_error(get_tracker_spec("detector-ideal"))
 
 
 def test_the_shared_file_is_unnamed_after_hello_and_used_only_when_accepted(tiny_seq, observations):

@@ -61,6 +61,11 @@ def _factory_of(
     if not isinstance(tracker, TrackerSpec):
         return getattr(tracker, "__name__", "python"), tracker
     spec = tracker
+    if spec.detection_mode != "stream":
+        raise PluginError(
+            f"tracker {spec.name!r} has detection_mode {spec.detection_mode!r}; a served tracker "
+            "gets the detections of the fault stream ('stream'), so run it in process"
+        )
     if spec.needs_depth_renderer and depth_renderer_factory is None:
         raise PluginError(
             f"tracker {spec.name!r} needs a depth renderer; serve it with "
