@@ -150,21 +150,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         metavar="DATASET",
         help="sequence folders/.h5 files or dataset roots holding several sequences",
     )
-    parser.add_argument(
-        "--tracker",
-        required=True,
-        help='tracker name (roft-sim trackers), or "process:<command line>": a tracker in a '
-        "child process speaking the tracker process protocol (docs/process.md)",
-    )
-    parser.add_argument(
-        "--tracker-config", type=Path, metavar="FILE", help="TOML file of tracker settings"
-    )
-    parser.add_argument(
-        "--tracker-name",
-        metavar="NAME",
-        help="with --tracker process:...: the name of the tracker in the outputs (default: made "
-        "from the command, e.g. process-roft)",
-    )
+    _add_tracker_arguments(parser)
     add_input_arguments(parser)
     parser.add_argument(
         "--out",
@@ -217,6 +203,25 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
     parser.set_defaults(func=_run)
+
+
+def _add_tracker_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--tracker``, ``--tracker-config``, ``--tracker-name``."""
+    parser.add_argument(
+        "--tracker",
+        required=True,
+        help='tracker name (roft-sim trackers), or "process:<command line>": a tracker in a '
+        "child process speaking the tracker process protocol (docs/process.md)",
+    )
+    parser.add_argument(
+        "--tracker-config", type=Path, metavar="FILE", help="TOML file of tracker settings"
+    )
+    parser.add_argument(
+        "--tracker-name",
+        metavar="NAME",
+        help="with --tracker process:...: the name of the tracker in the outputs (default: made "
+        "from the command, e.g. process-roft)",
+    )
 
 
 def resolve_tracker(name: str, config_path: Path | None) -> tuple[Any, Any]:
