@@ -122,8 +122,9 @@ class ConstantVelocityTracker:
         tau = (observation.k - self.k_last) / self.fps
         t, v, w = self.t_last, self.v, self.w
         t_now = (t[0] + v[0] * tau, t[1] + v[1] * tau, t[2] + v[2] * tau)
-        q_now = normalized(quat_multiply(quat_from_rotvec((w[0] * tau, w[1] * tau, w[2] * tau)),
-                                         self.q_last))
+        q_now = normalized(
+            quat_multiply(quat_from_rotvec((w[0] * tau, w[1] * tau, w[2] * tau)), self.q_last)
+        )
         return Estimate(
             k=observation.k,
             T_cam_obj=transform_from_pq(np.array(t_now), np.array(q_now)),
