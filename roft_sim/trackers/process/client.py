@@ -152,7 +152,10 @@ class ProcessTracker:
         self.config = config if config is not None else ProcessTrackerConfig()
         self.name = name
         self.command = tuple(command)
-        self._intrinsics = context.intrinsics
+        self._shared: SharedWriter | None = None
+        if self.config.shared_memory:
+            pixels = context.intrinsics.width_px * context.intrinsics.height_px
+            self._shared = SharedWriter(pixels * _SHARED_BYTES_PER_PIXEL + 16 * 64)
         try:
             self._process = subprocess.Popen(
                 self.command,
@@ -163,13 +166,11 @@ class ProcessTracker:
                 start_new_session=True,
             )
         except OSError as e:
+            if self._shared is not None:
+                self._shared.close()
             raise TrackerProcessError(
                 f"tracker process {name!r}: cannot start {shlex.join(self.command)!r}: {e}"
             ) from e
-        self._shared: SharedWriter | None = None
-        if self.config.shared_memory:
-            pixels = context.intrinsics.width_px * context.intrinsics.height_px
-            self._shared = SharedWriter(pixels * _SHARED_BYTES_PER_PIXEL + 16 * 64)
         self._finalizer = weakref.finalize(self, _release, self._process, self._shared)
         assert self._process.stdin is not None and self._process.stdout is not None  # PIPE
         self._stdin = self._process.stdin.fileno()
