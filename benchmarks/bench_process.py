@@ -8,8 +8,10 @@ Every frame sends what a real run sends at the given resolution: rgb (uint8), de
 flow (float32 on a ``--flow-grid`` grid, with its validity), one pose and one mask detection; the
 estimate comes back. The trackers alternate block by block (in process, child, C++, in process,
 ...) so that all see the same machine load. Printed: the step time [ms] (median, p95) of each and
-the overhead, the median step of the child minus the median in process; also the parent's time to
-encode and pack one observation either way.
+the overhead, the median step of the child minus the median in process, and the CPU time per
+frame of parent and child together minus the in-process tracker's (on a busy machine the wall
+time also holds the waits for a core); also the parent's time to encode and pack one
+observation either way.
 
     python benchmarks/bench_process.py
     python benchmarks/bench_process.py --frames 300 --flow-grid 4 --cpp build/cv_tracker/cv_tracker
@@ -21,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
+import os
 import sys
 import time
 from pathlib import Path
@@ -72,6 +75,14 @@ def observations(width: int, height: int, frames: int, grid: int) -> list[Observ
     return out
 
 
+def child_cpu_s(tracker: Tracker) -> float:
+    """CPU time the tracker's child process has used [s] (0 in process; Linux /proc)."""
+    if not isinstance(tracker, ProcessTracker):
+        return 0.0
+    fields = Path(f"/proc/{tracker.pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
 def step_times_ms(tracker: Tracker, block: list[Observation]) -> list[float]:
     times = []
     for observation in block:
@@ -112,13 +123,16 @@ def main() -> None:
     if args.cpp is not None:
         trackers["c++ child"] = ProcessTracker([str(args.cpp)], context)
     times: dict[str, list[float]] = {name: [] for name in trackers}
+    cpu_s = dict.fromkeys(trackers, 0.0)
     for tracker in trackers.values():
         tracker.reset(None)
         step_times_ms(tracker, frames[:2])  # warm up
     for _ in range(max(1, args.frames // args.block)):
         for name, tracker in trackers.items():
             tracker.reset(None)
+            parent, child = time.process_time(), child_cpu_s(tracker)
             times[name] += step_times_ms(tracker, frames)
+            cpu_s[name] += time.process_time() - parent + child_cpu_s(tracker) - child
     shared = SharedWriter(width * height * 18 + 1024)
     encode: dict[str, list[float]] = {"shared file": [], "pipe": []}
     for observation in frames:
@@ -132,11 +146,14 @@ def main() -> None:
     size_mb = len(codec.pack(codec.observation_message(frames[0]))) / 1e6
     print(f"{width}x{height}, flow grid {args.flow_grid}: {size_mb:.2f} MB per observation")
     base = float(np.median(times["in process"]))
-    print(f"{'tracker':<14} {'median ms':>10} {'p95 ms':>8} {'overhead ms':>12}")
+    base_cpu = cpu_s["in process"] / len(times["in process"]) * 1e3
+    print(f"{'tracker':<14} {'median ms':>10} {'p95 ms':>8} {'overhead ms':>12} {'cpu ms':>7} ")
     for name, values in times.items():
         median = float(np.median(values))
         p95 = float(np.percentile(values, 95))
-        print(f"{name:<14} {median:>10.3f} {p95:>8.3f} {median - base:>12.3f}")
+        cpu_ms = cpu_s[name] / len(values) * 1e3 - base_cpu
+        print(f"{name:<14} {median:>10.3f} {p95:>8.3f} {median - base:>12.3f} {cpu_ms:>7.3f}")
+    print("cpu ms: CPU time per frame of parent and child together, minus the in-process tracker's")
     for way, values in encode.items():
         print(f"parent encode + pack, {way}: median {np.median(values):.3f} ms")
 
