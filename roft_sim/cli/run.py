@@ -9,8 +9,10 @@ Everything is described in docs/running.md.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
+import re
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, cast
@@ -148,10 +150,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         metavar="DATASET",
         help="sequence folders/.h5 files or dataset roots holding several sequences",
     )
-    parser.add_argument("--tracker", required=True, help="tracker name (roft-sim trackers)")
-    parser.add_argument(
-        "--tracker-config", type=Path, metavar="FILE", help="TOML file of tracker settings"
-    )
+    _add_tracker_arguments(parser)
     add_input_arguments(parser)
     parser.add_argument(
         "--out",
@@ -206,6 +205,25 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     parser.set_defaults(func=_run)
 
 
+def _add_tracker_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--tracker``, ``--tracker-config``, ``--tracker-name``."""
+    parser.add_argument(
+        "--tracker",
+        required=True,
+        help='tracker name (roft-sim trackers), or "process:<command line>": a tracker in a '
+        "child process speaking the tracker process protocol (docs/process.md)",
+    )
+    parser.add_argument(
+        "--tracker-config", type=Path, metavar="FILE", help="TOML file of tracker settings"
+    )
+    parser.add_argument(
+        "--tracker-name",
+        metavar="NAME",
+        help="with --tracker process:...: the name of the tracker in the outputs (default: made "
+        "from the command, e.g. process-roft)",
+    )
+
+
 def resolve_tracker(name: str, config_path: Path | None) -> tuple[Any, Any]:
     """``(spec, config)`` of tracker ``name``; unknown names are usage errors (exit 2)."""
     from roft_sim.trackers import get_tracker_spec, load_tracker_config
@@ -217,6 +235,24 @@ def resolve_tracker(name: str, config_path: Path | None) -> tuple[Any, Any]:
     if config_path is not None and not config_path.is_file():
         raise ConfigError(f"--tracker-config {str(config_path)!r} does not exist")
     return spec, load_tracker_config(spec, config_path)
+
+
+def _renamed(spec: Any, tracker: str, name: str | None) -> Any:
+    """``spec`` named ``name`` (``--tracker-name``, only for ``process:`` trackers)."""
+    if name is None:
+        return spec
+    from roft_sim.trackers import PROCESS_PREFIX
+
+    if not tracker.startswith(PROCESS_PREFIX):
+        raise ConfigError(
+            f"--tracker-name names a {PROCESS_PREFIX}... tracker; {tracker!r} is registered "
+            "under its own name"
+        )
+    if not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9._+-]*", name):
+        raise ConfigError(
+            f"--tracker-name {name!r}: use letters, digits and . _ + - (it names folders)"
+        )
+    return dataclasses.replace(spec, name=name)
 
 
 def build_run_options(args: argparse.Namespace, tracker: str, config: Any) -> Any:
@@ -388,7 +424,8 @@ def _run(args: argparse.Namespace) -> int:
     from roft_sim.harness import open_sequences, run_sequences
 
     spec, config = resolve_tracker(args.tracker, args.tracker_config)
-    options = build_run_options(args, spec.name, config)
+    spec = _renamed(spec, args.tracker, args.tracker_name)
+    options = build_run_options(args, args.tracker, config)
     clock = build_clock(args)
     try:
         sources = open_sequences(args.datasets)

@@ -67,7 +67,10 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     )
     parser.add_argument("--config", type=Path, metavar="FILE", help="sweep TOML file")
     parser.add_argument(
-        "--trackers", metavar="A,B", help="comma-separated tracker names (roft-sim trackers)"
+        "--trackers",
+        metavar="A,B",
+        help="comma-separated tracker names (roft-sim trackers) or process:<command line> "
+        "(docs/process.md)",
     )
     parser.add_argument(
         "--faults",

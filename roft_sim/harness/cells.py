@@ -7,6 +7,11 @@ renamed into place only when complete, with ``cell.json`` inside. So a finished 
 redone, and a cell interrupted half-way (a crash, Ctrl-C, a killed worker) leaves only a
 temporary folder that :func:`execute_cells` removes before running the cell again.
 
+A cell whose tracker process fails (it crashes, hangs or breaks the protocol:
+:class:`~roft_sim.trackers.process.TrackerProcessError`) writes ``cells/<cell_id>.error.txt``
+instead and the other cells go on; :func:`execute_cells` then raises :class:`CellsFailedError`
+naming them. A failed cell has no ``cell.json``, so running the sweep again retries it.
+
 The cell id is readable (tracker, faults, parameter value, sequence, seed) and ends with a hash of
 the cell's full resolved configuration, so changing any setting gives new cells instead of reusing
 stale results.
@@ -28,6 +33,7 @@ from typing import Any, cast
 
 from roft_sim.config_files import jsonable
 from roft_sim.datasets import open_sequence
+from roft_sim.errors import RoftSimError
 from roft_sim.executors import Executor, SerialExecutor, Shard, select_shard
 from roft_sim.harness.evaluation import evaluate_run
 from roft_sim.harness.options import RunOptions
@@ -40,11 +46,14 @@ from roft_sim.harness.outputs import (
 )
 from roft_sim.harness.runner import run_sequence
 from roft_sim.metrics import SequenceMetrics
+from roft_sim.trackers.process import TrackerProcessError
 
 __all__ = [
     "SweepCell",
     "CELLS_DIR",
     "CELL_FILE",
+    "ERROR_SUFFIX",
+    "CellsFailedError",
     "make_cell_id",
     "run_cell",
     "execute_cells",
@@ -56,6 +65,28 @@ __all__ = [
 
 CELLS_DIR = "cells"
 CELL_FILE = "cell.json"
+ERROR_SUFFIX = ".error.txt"
+"""``cells/<cell_id>.error.txt``: why the cell's tracker process failed (removed on success)."""
+
+
+class CellsFailedError(RoftSimError):
+    """Cells whose tracker process failed; every other cell ran (and is kept on disk).
+
+    Attributes:
+        failures: ``{cell_id: message}`` of the failed cells.
+    """
+
+    def __init__(self, failures: dict[str, str], cells_dir: Path) -> None:
+        first_id, first = next(iter(failures.items()))
+        super().__init__(
+            f"{len(failures)} cell(s) failed, the others finished and are kept; each failure is "
+            f"in {cells_dir}/<cell_id>{ERROR_SUFFIX} ({', '.join(failures)}). Fix the tracker and "
+            f"run the sweep again with --resume to retry them. The first failure ({first_id}):\n"
+            f"{first}"
+        )
+        self.failures = failures
+
+
 _UNSAFE = re.compile(r"[^A-Za-z0-9._=+-]+")
 
 
@@ -159,7 +190,8 @@ def run_cell(cell: SweepCell, cells_dir: str | Path) -> dict[str, Any]:
     """Runs one cell and moves its complete folder into ``cells_dir/<cell_id>``.
 
     Returns:
-        The cell record (the content of ``cell.json``).
+        The cell record (the content of ``cell.json``), or for a cell whose tracker process
+        failed, its description with the error under ``"failed"`` (and no ``cell.json``).
     """
     cells_dir = Path(cells_dir)
     final = cells_dir / cell.cell_id
@@ -169,7 +201,13 @@ def run_cell(cell: SweepCell, cells_dir: str | Path) -> dict[str, Any]:
     shutil.rmtree(tmp, ignore_errors=True)
     t0 = time.perf_counter()
     sequence = open_sequence(cell.sequence_path)
-    run = run_sequence(sequence, cell.options)
+    error_file = cells_dir / f"{cell.cell_id}{ERROR_SUFFIX}"
+    try:
+        run = run_sequence(sequence, cell.options)
+    except TrackerProcessError as e:  # this cell fails; the sweep goes on
+        error_file.write_text(f"{e}\n", encoding="utf-8")
+        return {**cell.describe(), "failed": str(e)}
+    error_file.unlink(missing_ok=True)
     evaluation = evaluate_run(run, invalid=cell.options.invalid)
     write_sequence_outputs(tmp, run, evaluation)
     record = {
@@ -265,7 +303,8 @@ def execute_cells(
     running there.
 
     Raises:
-        WorkUnitError: a cell failed (finished cells are kept; run again to resume).
+        CellsFailedError: tracker processes failed in some cells; all the others ran.
+        WorkUnitError: a cell failed otherwise (finished cells are kept; run again to resume).
     """
     cells_dir = Path(cells_dir)
     cells_dir.mkdir(parents=True, exist_ok=True)
@@ -281,6 +320,7 @@ def execute_cells(
         remove_cell_leftovers(cells_dir, [c.cell_id for c in mine if c.cell_id not in done])
     todo = [c for c in mine if c.cell_id not in done]
     records = {i: done[i] for i in ids if i in done}
+    failures: dict[str, str] = {}
     executor = executor or SerialExecutor()
     from tqdm import tqdm
 
@@ -294,8 +334,13 @@ def execute_cells(
     ) as bar:
         fn = functools.partial(run_cell, cells_dir=cells_dir)
         for cell, record in executor.map_unordered(fn, todo):
-            records[cell.cell_id] = record
             bar.update(1)
+            if "failed" in record:
+                failures[cell.cell_id] = record["failed"]
+                continue
+            records[cell.cell_id] = record
             if on_done is not None:
                 on_done(cell, record)
+    if failures:
+        raise CellsFailedError(failures, cells_dir)
     return {i: records[i] for i in ids if i in records}

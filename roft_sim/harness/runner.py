@@ -56,6 +56,7 @@ from roft_sim.trackers import (
     Tracker,
     TrackerContext,
     TrackerSpec,
+    close_tracker,
     create_tracker,
     get_tracker_spec,
 )
@@ -337,27 +338,32 @@ def run_sequence(
         depth_renderer=renderer if spec.needs_depth_renderer else None,
     )
     tracker = create_tracker(spec, context, options.tracker_config)
-    ground_truth = sequence.ground_truth()
-    tracker.reset(_initial_estimate(options, sequence.name, ground_truth))
-    timeline = None
-    if clock is None:
-        estimates, step_times, load_times = _step_through(
-            stream, tracker, len(sequence), spec.name, progress, gate
-        )
-    else:
-        tracker_name = spec.name
-        timeline, step_times, load_times = step_against_clock(
-            stream,
-            tracker,
-            len(sequence),
-            fps=int(sequence.fps),
-            clock=clock,
-            check=lambda estimate, k: _checked(estimate, k, tracker_name),
-            gate=gate,
-            progress=progress,
-            warm_up=None if renderer is None else partial(_warm_up, renderer, sequence.intrinsics),
-        )
-        estimates = list(held_estimates(timeline.tracker_estimates, timeline.held_index()))
+    try:
+        ground_truth = sequence.ground_truth()
+        tracker.reset(_initial_estimate(options, sequence.name, ground_truth))
+        timeline = None
+        if clock is None:
+            estimates, step_times, load_times = _step_through(
+                stream, tracker, len(sequence), spec.name, progress, gate
+            )
+        else:
+            tracker_name = spec.name
+            timeline, step_times, load_times = step_against_clock(
+                stream,
+                tracker,
+                len(sequence),
+                fps=int(sequence.fps),
+                clock=clock,
+                check=lambda estimate, k: _checked(estimate, k, tracker_name),
+                gate=gate,
+                progress=progress,
+                warm_up=None
+                if renderer is None
+                else partial(_warm_up, renderer, sequence.intrinsics),
+            )
+            estimates = list(held_estimates(timeline.tracker_estimates, timeline.held_index()))
+    finally:
+        close_tracker(tracker)  # a tracker process exits (or is killed) and is reaped
     schedule = stream.schedule
     return SequenceRun(
         sequence_name=sequence.name,

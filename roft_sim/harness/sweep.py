@@ -126,7 +126,7 @@ class TrackerVariant:
     label: str
     """Row label (unique in the sweep)."""
     name: str
-    """Registry name of the tracker."""
+    """Registry name of the tracker, or ``process:<command line>`` (docs/process.md)."""
     config: Path | None = None
     """TOML file of its settings (relative to the sweep file); None = defaults."""
 
@@ -290,16 +290,18 @@ def apply_parameter(faults: FaultConfig, parameter: SweptParameter, value: float
 
 
 def _tracker_rows(config: SweepConfig) -> list[tuple[str, str, Any]]:
-    """``(label, tracker name, config instance)`` per tracker row."""
+    """``(label, tracker, config instance)`` per tracker row: the label is the registry name
+    (for ``process:<command>``, the name made from the command) or the variant's label; the
+    tracker is the name as given, which :func:`get_tracker_spec` resolves in every worker."""
     rows = []
     for name in config.trackers:
         spec = get_tracker_spec(name)
-        rows.append((name, spec.name, load_tracker_config(spec, None)))
+        rows.append((spec.name, name, load_tracker_config(spec, None)))
     for v in config.variants:
         spec = get_tracker_spec(v.name)
         if v.config is not None and not Path(v.config).is_file():
             raise ConfigError(f"variant {v.label!r}: config file {str(v.config)!r} does not exist")
-        rows.append((v.label, spec.name, load_tracker_config(spec, v.config)))
+        rows.append((v.label, v.name, load_tracker_config(spec, v.config)))
     return rows
 
 
@@ -848,7 +850,8 @@ def run_sweep(
 
     Raises:
         ConfigError: bad configuration (before anything runs).
-        WorkUnitError: a cell failed (finished cells are kept).
+        CellsFailedError: tracker processes failed in some cells (all the others ran).
+        WorkUnitError: a cell failed otherwise (finished cells are kept).
     """
     from roft_sim.datasets.atomic_files import atomic_write_text
 

@@ -3,6 +3,8 @@
 Registered trackers (entry-point group ``roft_sim.trackers``; ``roft-sim trackers`` lists them):
 ``roft`` (:mod:`roft_sim.trackers.roft`), ``detector-hold``, ``detector-ideal``, ``naive-delay``
 and ``pose-only-ukf`` (:mod:`roft_sim.trackers.baselines`). Writing a plugin: docs/plugins.md.
+A name ``process:<command line>`` is a tracker in a child process, any language
+(:mod:`roft_sim.trackers.process`, docs/process.md).
 """
 
 from __future__ import annotations
@@ -11,28 +13,45 @@ from collections.abc import Iterable
 
 from roft_sim.errors import PluginError
 from roft_sim.records import Estimate, Observation
+from roft_sim.trackers import base
 from roft_sim.trackers.base import (
     ENTRY_POINT_GROUP,
     Tracker,
     TrackerContext,
     TrackerSpec,
+    close_tracker,
     create_tracker,
     discover_trackers,
-    get_tracker_spec,
     load_tracker_config,
 )
+from roft_sim.trackers.process.client import PROCESS_PREFIX, process_tracker_spec
 
 __all__ = [
     "ENTRY_POINT_GROUP",
+    "PROCESS_PREFIX",
     "Tracker",
     "TrackerContext",
     "TrackerSpec",
+    "close_tracker",
     "create_tracker",
     "discover_trackers",
     "get_tracker_spec",
     "load_tracker_config",
     "run_tracker",
 ]
+
+
+def get_tracker_spec(name: str, group: str = ENTRY_POINT_GROUP) -> TrackerSpec:
+    """The spec registered as ``name``, or for ``process:<command line>`` the spec of a tracker
+    process running that command (:func:`roft_sim.trackers.process.process_tracker_spec`).
+
+    Raises:
+        PluginError: no tracker of that name (the message lists the installed ones).
+        ConfigError: an empty or unbalanced ``process:`` command line.
+    """
+    if name.startswith(PROCESS_PREFIX):
+        return process_tracker_spec(name[len(PROCESS_PREFIX) :])
+    return base.get_tracker_spec(name, group)
 
 
 def run_tracker(

@@ -40,6 +40,7 @@ __all__ = [
     "get_tracker_spec",
     "load_tracker_config",
     "create_tracker",
+    "close_tracker",
 ]
 
 
@@ -64,6 +65,9 @@ class Tracker(Protocol):
         observation with ``rgb``/``depth_m`` None.
         """
         ...
+
+    # Optional: ``close()``, called once when the harness is done with the tracker
+    # (:func:`close_tracker`); not part of the protocol, so plain trackers need none.
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -185,3 +189,12 @@ def create_tracker(spec: TrackerSpec, context: TrackerContext, config: Any = Non
             "which has no reset()/step()"
         )
     return tracker
+
+
+def close_tracker(tracker: Tracker) -> None:
+    """Calls ``tracker.close()`` when the tracker has one (optional: a tracker that holds a
+    child process or other resources releases them there). The harness calls it once a run of
+    the tracker has ended, normally or not."""
+    close = getattr(tracker, "close", None)
+    if callable(close):
+        close()
