@@ -50,7 +50,7 @@ from roft_sim.bags.messages import (
 from roft_sim.bags.writer import BagWriter, TopicCount, check_bag_path, open_bag
 from roft_sim.datasets.base import Sequence
 from roft_sim.errors import ConfigError
-from roft_sim.faults import ObservationStream
+from roft_sim.faults import FaultConfig, ObservationStream
 from roft_sim.harness.inputs import check_inputs
 from roft_sim.harness.options import RunOptions
 from roft_sim.harness.runner import make_observation_stream
@@ -81,7 +81,7 @@ class BagExport:
 
 
 def export_options(
-    faults: object, *, seed: int = 0, poses: str = "auto", masks: str = "auto"
+    faults: FaultConfig, *, seed: int = 0, poses: str = "auto", masks: str = "auto"
 ) -> RunOptions:
     """The :class:`RunOptions` whose observation stream a bag holds (no tracker, no flow).
 
@@ -93,7 +93,7 @@ def export_options(
     """
     return RunOptions(
         tracker=_STREAM_ONLY, faults=faults, flow="none", poses=poses, masks=masks, seed=seed
-    )  # type: ignore[arg-type]  # faults is checked by RunOptions' users
+    )
 
 
 def _write_camera(
@@ -112,7 +112,9 @@ def _write_camera(
 def _write_detections(bag: BagWriter, observation: Observation, fps: int, log_ns: int) -> None:
     for pose in observation.poses:
         stamp = stamp_ns_from_frame(pose.capture_k, fps)
-        bag.write(DETECTOR_POSE_TOPIC, POSE_STAMPED, pose_stamped_msg(stamp, pose.T_cam_obj), log_ns)
+        bag.write(
+            DETECTOR_POSE_TOPIC, POSE_STAMPED, pose_stamped_msg(stamp, pose.T_cam_obj), log_ns
+        )
     for mask in observation.masks:
         stamp = stamp_ns_from_frame(mask.capture_k, fps)
         bag.write(MASK_TOPIC, IMAGE, mask_image_msg(stamp, mask.mask), log_ns)

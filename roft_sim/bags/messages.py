@@ -180,7 +180,9 @@ def rgb_image_msg(stamp_ns: int, rgb: U8) -> dict[str, Any]:
 
 def mask_image_msg(stamp_ns: int, mask: NDArray[np.bool_]) -> dict[str, Any]:
     """A ``mono8`` ``sensor_msgs/Image`` of ``mask`` (H, W) bool: 255 on the object, 0 off it."""
-    return _image(stamp_ns, "mono8", np.where(np.asarray(mask, dtype=bool), 255, 0).astype(np.uint8))
+    return _image(
+        stamp_ns, "mono8", np.where(np.asarray(mask, dtype=bool), 255, 0).astype(np.uint8)
+    )
 
 
 def depth_image_msg(stamp_ns: int, depth_m: F32, encoding: DepthEncoding) -> dict[str, Any]:

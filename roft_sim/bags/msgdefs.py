@@ -45,8 +45,8 @@ MESSAGE_DEFINITIONS: dict[str, str] = {
 """``.msg`` text of every type used, by full name (``package/msg/Type``)."""
 
 _PRIMITIVES = frozenset(
-    "bool byte char float32 float64 int8 uint8 int16 uint16 int32 uint32 int64 uint64 string "
-    "wstring".split()
+    ("bool", "byte", "char", "float32", "float64", "string", "wstring")
+    + tuple(f"{sign}int{bits}" for sign in ("", "u") for bits in (8, 16, 32, 64))
 )
 _FIELD = re.compile(r"^([A-Za-z0-9_/]+)(?:\[[0-9<=]*\])?\s+\w+")
 _SEPARATOR = "=" * 80

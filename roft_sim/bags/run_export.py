@@ -72,12 +72,16 @@ def _write_estimates(
     for e in estimates:
         stamp_ns = stamp_ns_from_frame(e.k, fps)
         if _usable(e):
-            bag.write(TRACKER_POSE_TOPIC, POSE_STAMPED, pose_stamped_msg(stamp_ns, e.T_cam_obj), stamp_ns)
+            bag.write(
+                TRACKER_POSE_TOPIC, POSE_STAMPED, pose_stamped_msg(stamp_ns, e.T_cam_obj), stamp_ns
+            )
         if spatial and e.spatial_twist is not None:
             linear, angular = e.spatial_twist[:3], e.spatial_twist[3:]
         elif _usable(e) and np.isfinite(e.v_obj_mps).all() and np.isfinite(e.w_radps).all():
             # v_o = v_obj - w x t_gt, as velocity_estimate.txt holds it (spatial), or v_obj
-            linear, angular = (rows[e.k, :3], rows[e.k, 3:]) if spatial else (e.v_obj_mps, e.w_radps)
+            linear, angular = (
+                (rows[e.k, :3], rows[e.k, 3:]) if spatial else (e.v_obj_mps, e.w_radps)
+            )
         else:
             continue
         if np.isfinite(linear).all() and np.isfinite(angular).all():

@@ -76,7 +76,9 @@ class BagWriter:
         self._schemas: dict[str, Any] = {}
         self._topics: dict[str, TopicCount] = {}
 
-    def write(self, topic: str, datatype: str, message: Mapping[str, Any], log_time_ns: int) -> None:
+    def write(
+        self, topic: str, datatype: str, message: Mapping[str, Any], log_time_ns: int
+    ) -> None:
         """Writes ``message`` of ``datatype`` on ``topic``, logged at ``log_time_ns`` [ns].
 
         Raises:
