@@ -21,9 +21,16 @@ pytest.importorskip("rosbags", reason="needs the bags extra: pip install -e '.[b
 
 # the hand-made sequences live with the harness tests
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "harness"))
-from harness_cases import box_sequence, write_box_dataset  # noqa: E402
+from harness_cases import EchoConfig, EchoTracker, box_sequence, write_box_dataset  # noqa: E402
 
-__all__ = ["read_with_mcap_ros2", "read_with_rosbags", "box_sequence", "write_box_dataset"]
+__all__ = [
+    "read_with_mcap_ros2",
+    "read_with_rosbags",
+    "box_sequence",
+    "write_box_dataset",
+    "EchoConfig",
+    "EchoTracker",
+]
 
 
 def _stamp_ns(message: Any) -> int | None:
