@@ -2,8 +2,9 @@
 atomically: the messages go to a hidden temporary file beside the target, renamed into place when
 the bag is complete, removed when writing fails.
 
-The MCAP is written by ``mcap-ros2-support`` (zstd-compressed chunks, CRCs); each message type is
-registered once with its definitions (:func:`~roft_sim.bags.msgdefs.schema_text`).
+The MCAP is written by ``mcap`` (zstd-compressed chunks, CRCs) with the messages encoded by
+``mcap-ros2-support``; each message type is registered once with its definitions
+(:func:`~roft_sim.bags.msgdefs.schema_text`).
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ __all__ = [
     "check_bag_path",
     "require_bags_extra",
     "METADATA_NAME",
+    "QOS_METADATA",
 ]
 
 METADATA_NAME = "roft_sim"
@@ -63,23 +65,48 @@ class TopicCount:
     """How many messages it has."""
 
 
+QOS_METADATA = {"offered_qos_profiles": ""}
+"""Channel metadata of every topic: the ``ros2`` profile requires the key; rosbag2 reads an
+empty value as "no recorded QoS" and ``ros2 bag play`` then publishes with its default QoS."""
+
+
 class BagWriter:
     """Writes messages (dicts in their ``.msg`` layout) to an open MCAP stream.
 
-    Use :func:`open_bag`; :meth:`write` registers each topic's schema and channel on first use.
+    Use :func:`open_bag`; :meth:`write` registers each type's schema and each topic's channel on
+    first use. Messages are encoded to CDR by the encoder of ``mcap-ros2-support``; the file is
+    written with ``mcap``'s writer directly, because the ROS 2 writer of ``mcap-ros2-support``
+    registers channels without the ``offered_qos_profiles`` metadata the profile requires.
     """
 
     def __init__(self, stream: Any) -> None:
-        from mcap_ros2.writer import Writer
+        from mcap.writer import CompressionType, Writer
 
-        self._writer = Writer(stream)
-        self._schemas: dict[str, Any] = {}
+        from roft_sim import __version__
+
+        self._writer = Writer(stream, compression=CompressionType.ZSTD)
+        self._writer.start(profile="ros2", library=f"roft_sim {__version__}")
+        self._schemas: dict[str, tuple[int, Any]] = {}
+        self._channels: dict[str, int] = {}
         self._topics: dict[str, TopicCount] = {}
+
+    def _schema(self, datatype: str) -> tuple[int, Any]:
+        """``(schema id, CDR encoder)`` of ``datatype``, registered on first use."""
+        if datatype not in self._schemas:
+            from mcap.well_known import SchemaEncoding
+            from mcap_ros2._dynamic import serialize_dynamic
+
+            text = schema_text(datatype)
+            data = text.encode()
+            schema_id = self._writer.register_schema(datatype, SchemaEncoding.ROS2, data)
+            self._schemas[datatype] = (schema_id, serialize_dynamic(datatype, text)[datatype])
+        return self._schemas[datatype]
 
     def write(
         self, topic: str, datatype: str, message: Mapping[str, Any], log_time_ns: int
     ) -> None:
-        """Writes ``message`` of ``datatype`` on ``topic``, logged at ``log_time_ns`` [ns].
+        """Writes ``message`` of ``datatype`` on ``topic``, logged and published at
+        ``log_time_ns`` [ns].
 
         Raises:
             ConfigError: the topic was written before with another type.
@@ -87,13 +114,20 @@ class BagWriter:
         seen = self._topics.get(topic)
         if seen is not None and seen.datatype != datatype:
             raise ConfigError(f"topic {topic!r} carries {seen.datatype}, not {datatype}")
-        schema = self._schemas.get(datatype)
-        if schema is None:
-            schema = self._writer.register_msgdef(datatype, schema_text(datatype))
-            self._schemas[datatype] = schema
+        schema_id, encode = self._schema(datatype)
+        if topic not in self._channels:
+            from mcap.well_known import MessageEncoding
+
+            self._channels[topic] = self._writer.register_channel(
+                topic, MessageEncoding.CDR, schema_id, metadata=dict(QOS_METADATA)
+            )
         count = 0 if seen is None else seen.messages
-        self._writer.write_message(
-            topic, schema, message, log_time=int(log_time_ns), sequence=count
+        self._writer.add_message(
+            self._channels[topic],
+            log_time=int(log_time_ns),
+            data=encode(message),
+            publish_time=int(log_time_ns),
+            sequence=count,
         )
         self._topics[topic] = TopicCount(datatype, count + 1)
 
@@ -108,7 +142,7 @@ class BagWriter:
 
     def finish(self) -> None:
         """Writes the summary section and the footer."""
-        self._writer.finish()  # type: ignore[no-untyped-call]  # mcap_ros2 leaves it untyped
+        self._writer.finish()  # type: ignore[no-untyped-call]  # mcap leaves it untyped
 
 
 @contextlib.contextmanager

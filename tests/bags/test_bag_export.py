@@ -234,3 +234,20 @@ def test_a_failed_export_leaves_no_file(tmp_path):
     with pytest.raises(KeyboardInterrupt):
         export_sequence_bag(sequence, export_options(load_faults("none")), out, progress=interrupt)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_the_bag_follows_the_mcap_ros2_profile(chaos_bag):
+    from mcap.reader import make_reader
+
+    with open(chaos_bag, "rb") as stream:
+        reader = make_reader(stream)
+        header = reader.get_header()
+        summary = reader.get_summary()
+        metadata = {m.name: m.metadata for m in reader.iter_metadata()}
+    assert header.profile == "ros2"
+    assert {s.encoding for s in summary.schemas.values()} == {"ros2msg"}
+    for channel in summary.channels.values():
+        assert channel.message_encoding == "cdr"
+        assert channel.metadata == {"offered_qos_profiles": ""}  # the profile's required key
+    assert metadata["roft_sim"]["faults"] == "chaos" and metadata["roft_sim"]["seed"] == "10"
+    assert metadata["roft_sim"]["frames"] == "60" and metadata["roft_sim"]["fps"] == "30"
