@@ -6,7 +6,9 @@
 # `bash scripts/run_tests.sh --run-slow -k flow`.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bash scripts/setup.sh dev,ray,process   # ray: the optional executor is tested too (~80 MB, <10 s); process: msgpack
+# ray: the optional executor is tested too (~80 MB, <10 s); process: msgpack (the tracker
+# process protocol); bags: roft-sim bag (mcap, rosbags)
+bash scripts/setup.sh dev,ray,process,bags
 .venv/bin/python -m mypy
 .venv/bin/lint-imports --no-cache
 exec .venv/bin/python -m pytest "$@"

@@ -24,6 +24,7 @@ from typing import TextIO
 from roft_sim import __version__
 from roft_sim.cli import (
     assets,
+    bag,
     compare,
     dataset,
     demo,
@@ -59,6 +60,7 @@ VERBS: tuple[tuple[str, RegisterVerb], ...] = (
     ("compare", compare.register),
     ("report", report.register),
     ("view", view.register),
+    ("bag", bag.register),
     ("paper", paper.register),
     ("dataset", dataset.register),
     ("preview", preview.register),
