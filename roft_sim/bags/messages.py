@@ -46,6 +46,7 @@ __all__ = [
     "TRACKER_POSE_TOPIC",
     "TRACKER_TWIST_TOPIC",
     "CAMERA_FRAME",
+    "OBJECT_FRAME",
     "GT_OBJECT_FRAME",
     "IMAGE",
     "CAMERA_INFO",
@@ -90,6 +91,11 @@ TRACKER_TWIST_TOPIC = "/tracker/twist"
 
 CAMERA_FRAME = "camera_color_optical_frame"
 """The camera's optical frame (x right, y down, z forward); depth is registered to it."""
+OBJECT_FRAME = "object"
+"""The tracker's own estimated object frame: a twist stamped in it is the body twist (the
+object's velocity and angular velocity expressed in its own frame), which carries the
+estimate's ``v_obj`` and ``w`` whatever the bag's convention (a run's frame without a spatial
+twist)."""
 GT_OBJECT_FRAME = "object_ground_truth"
 """The child frame of the ground truth on ``/tf`` (a tracker's own ``object`` frame does not
 collide with it)."""
@@ -302,12 +308,15 @@ def tf_msg(stamp_ns: int, T_cam_obj: F64, child_frame: str = GT_OBJECT_FRAME) ->
     return {"transforms": [transform]}
 
 
-def twist_stamped_msg(stamp_ns: int, linear: F64, angular_radps: F64) -> dict[str, Any]:
-    """A ``geometry_msgs/TwistStamped`` in the camera frame: ``linear`` (3,) [m/s] (see
-    :data:`TwistLinear`) and ``angular_radps`` (3,) [rad/s]."""
+def twist_stamped_msg(
+    stamp_ns: int, linear: F64, angular_radps: F64, frame_id: str = CAMERA_FRAME
+) -> dict[str, Any]:
+    """A ``geometry_msgs/TwistStamped``: ``linear`` (3,) [m/s] (in the camera frame, see
+    :data:`TwistLinear`; in :data:`OBJECT_FRAME`, the body twist) and ``angular_radps`` (3,)
+    [rad/s], both expressed in ``frame_id``."""
     (vx, vy, vz), (wx, wy, wz) = np.asarray(linear).tolist(), np.asarray(angular_radps).tolist()
     return {
-        "header": header(stamp_ns),
+        "header": header(stamp_ns, frame_id),
         "twist": {"linear": {"x": vx, "y": vy, "z": vz}, "angular": {"x": wx, "y": wy, "z": wz}},
     }
 

@@ -6,8 +6,9 @@ Each frame ``k`` is stamped and logged at ``k / fps``. A valid estimate gives a 
 :data:`~roft_sim.bags.messages.TRACKER_POSE_TOPIC`; an invalid one none. The twist on
 :data:`~roft_sim.bags.messages.TRACKER_TWIST_TOPIC` carries what the run's velocity metrics
 scored: when any estimate has a spatial twist (ROFT's velocity filter) the convention is
-``spatial`` and each twist is the row of ``velocity_estimate.txt`` (the spatial twist, or ``v_o =
-v_obj - w x t_gt`` of a frame without one, which the score turns back into ``v_obj``); otherwise
+``spatial`` and each twist is the spatial twist, or, for a frame without one, the body twist
+(``v_obj`` and ``w`` in the estimated object frame, stamped in :data:`OBJECT_FRAME`, which the
+score turns back into ``v_obj`` and ``w`` with that frame's pose); otherwise
 it is ``origin`` and each twist is the estimate's ``v_obj`` and ``w``. The bag's metadata names
 the convention and the run's invalid-estimate policy, which ``bag score`` then uses.
 """
@@ -23,6 +24,8 @@ import numpy as np
 from roft_sim import __version__
 from roft_sim.bags.export import BagExport
 from roft_sim.bags.messages import (
+    CAMERA_FRAME,
+    OBJECT_FRAME,
     POSE_STAMPED,
     TRACKER_POSE_TOPIC,
     TRACKER_TWIST_TOPIC,
@@ -35,10 +38,8 @@ from roft_sim.bags.writer import BagWriter, check_bag_path, open_bag
 from roft_sim.errors import ConfigError
 from roft_sim.harness.outputs import (
     ESTIMATES_FILE,
-    VELOCITY_ESTIMATE_FILE,
     load_estimates,
     read_json,
-    read_velocity_estimate,
 )
 from roft_sim.harness.run_dataset import RUN_FILE
 from roft_sim.records import Estimate
@@ -67,7 +68,7 @@ def _usable(e: Estimate) -> bool:
 
 
 def _write_estimates(
-    bag: BagWriter, estimates: tuple[Estimate, ...], rows: Any, fps: int, spatial: bool
+    bag: BagWriter, estimates: tuple[Estimate, ...], fps: int, spatial: bool
 ) -> None:
     for e in estimates:
         stamp_ns = stamp_ns_from_frame(e.k, fps)
@@ -75,17 +76,18 @@ def _write_estimates(
             bag.write(
                 TRACKER_POSE_TOPIC, POSE_STAMPED, pose_stamped_msg(stamp_ns, e.T_cam_obj), stamp_ns
             )
+        frame = CAMERA_FRAME
         if spatial and e.spatial_twist is not None:
             linear, angular = e.spatial_twist[:3], e.spatial_twist[3:]
         elif _usable(e) and np.isfinite(e.v_obj_mps).all() and np.isfinite(e.w_radps).all():
-            # v_o = v_obj - w x t_gt, as velocity_estimate.txt holds it (spatial), or v_obj
-            linear, angular = (
-                (rows[e.k, :3], rows[e.k, 3:]) if spatial else (e.v_obj_mps, e.w_radps)
-            )
+            linear, angular = e.v_obj_mps, e.w_radps
+            if spatial:  # no spatial twist: the body twist, which the score turns back exactly
+                R = np.asarray(e.T_cam_obj)[:3, :3]
+                linear, angular, frame = R.T @ linear, R.T @ angular, OBJECT_FRAME
         else:
             continue
         if np.isfinite(linear).all() and np.isfinite(angular).all():
-            twist = twist_stamped_msg(stamp_ns, linear, angular)
+            twist = twist_stamped_msg(stamp_ns, linear, angular, frame)
             bag.write(TRACKER_TWIST_TOPIC, TWIST_STAMPED, twist, stamp_ns)
 
 
@@ -117,12 +119,11 @@ def export_run_bag(
     record = _sequence_record(run, run_dir, sequence)
     folder = run_dir / record["name"]
     estimates = load_estimates(folder / ESTIMATES_FILE)
-    rows = read_velocity_estimate(folder / VELOCITY_ESTIMATE_FILE)
     fps = int(record["fps"])
-    if rows.shape != (len(estimates), 6) or len(estimates) != int(record["frames"]):
+    if len(estimates) != int(record["frames"]):
         raise ConfigError(
-            f"{folder}: {len(estimates)} estimates and {rows.shape[0]} velocity rows for "
-            f"{record['frames']} frames; the run folder is incomplete"
+            f"{folder}: {len(estimates)} estimates for {record['frames']} frames; the run "
+            "folder is incomplete"
         )
     spatial = any(e.spatial_twist is not None for e in estimates)
     metadata = {
@@ -139,7 +140,7 @@ def export_run_bag(
     }
     with open_bag(path) as bag:
         bag.add_metadata(metadata)
-        _write_estimates(bag, estimates, rows, fps, spatial)
+        _write_estimates(bag, estimates, fps, spatial)
         topics = bag.topics
     return BagExport(
         path=path,

@@ -10,7 +10,9 @@ frame, the last one logged counts (the tracker's newest answer). Each frame then
   zero velocity), scored by the run's invalid-estimate policy;
 - a twist message: ``spatial`` (``twist.linear`` is ``v_o``) sets the estimate's spatial twist,
   scored with ``v = v_o + w x t_gt``; ``origin`` sets ``v_obj`` and ``w``, scored as they are;
-  a frame with a pose but no twist has no velocity (left out of the velocity RMSEs).
+  a twist stamped in the object frame (``object``, the body twist) is turned into ``v_obj`` and
+  ``w`` with the pose of its frame, whatever the convention; a frame with a pose but no twist
+  has no velocity (left out of the velocity RMSEs).
 
 The estimates are scored by :func:`~roft_sim.metrics.evaluate_estimates` as
 :func:`~roft_sim.harness.evaluation.evaluate_run` scores a run (``velocity="auto"``); the
@@ -28,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from roft_sim.bags.messages import (
+    OBJECT_FRAME,
     POSE_STAMPED,
     TWIST_STAMPED,
     TwistLinear,
@@ -182,7 +185,13 @@ def estimates_from_messages(
             nan = np.full(3, np.nan)
             e = Estimate(k=k, T_cam_obj=_pose(pose), v_obj_mps=nan, w_radps=nan.copy())
         twist = twist_of.get(k)
-        if twist is not None:
+        if twist is not None and twist.message.header.frame_id == OBJECT_FRAME:
+            # a body twist: v_obj and w in the estimated object frame, turned back with its pose
+            linear, angular = twist_from_msg(twist.message)
+            if pose is not None:
+                R = e.T_cam_obj[:3, :3]
+                e = Estimate(k=k, T_cam_obj=e.T_cam_obj, v_obj_mps=R @ linear, w_radps=R @ angular)
+        elif twist is not None:
             linear, angular = twist_from_msg(twist.message)
             if twist_linear == "spatial":
                 e = Estimate(

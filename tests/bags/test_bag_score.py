@@ -120,6 +120,30 @@ def test_round_trip_of_a_run_with_spatial_twists(sequence_dir, tmp_path, faults,
         assert all(log == stamp for _, _, log, stamp, _ in messages)
 
 
+class HeldWithoutTwist(TwistEcho):
+    """TwistEcho whose frame after each frame without a spatial twist is invalid: under
+    ``hold`` it is scored with that frame's ``v_obj`` and ``w``, which its bag must carry
+    exactly (as a body twist) for the score to give them back."""
+
+    def step(self, observation: Observation) -> Estimate:
+        e = super().step(observation)
+        if observation.k % 4 == 1 and observation.k > 1:
+            return Estimate.invalid(observation.k)
+        return dataclasses.replace(e, v_obj_mps=e.v_obj_mps + 0.1, w_radps=e.w_radps - 0.2)
+
+
+def test_round_trip_when_a_held_frame_has_no_spatial_twist(sequence_dir, tmp_path):
+    run_dir = tmp_path / "run"
+    options = RunOptions(tracker="held", faults=load_faults("none"), flow="none", invalid="hold")
+    spec = TrackerSpec(
+        name="held", description="test", config_type=EchoConfig, factory=HeldWithoutTwist
+    )
+    run_sequences(open_sequences([sequence_dir]), options, run_dir, spec=spec)
+    reference = json.loads((run_dir / "metrics.json").read_text())
+    assert reference["box"]["frames_invalid"] > 0
+    assert_metrics_match(export_and_score(run_dir, tmp_path, sequence_dir), reference)
+
+
 @pytest.mark.parametrize("faults", ["paper", pytest.param("chaos", marks=pytest.mark.slow)])
 def test_round_trip_of_roft(sequence_dir, tmp_path, faults):
     run_dir = tmp_path / "run"
