@@ -74,7 +74,8 @@ def add_auc(distances_m: ArrayLike, *, max_threshold_m: float = DEFAULT_MAX_THRE
 def add_auc_rows(
     distances_m: ArrayLike, *, max_threshold_m: float = DEFAULT_MAX_THRESHOLD_M
 ) -> F64:
-    """:func:`add_auc` of every row of (R, N) distances at once (bootstrap resamples).
+    """:func:`add_auc` of every row of (R, N) distances at once (bootstrap resamples), with
+    float64 accuracy steps (within 1e-5 points of :func:`add_auc`'s float32 ones).
 
     The step integral of the module docstring sums to a closed form: with ``d_i`` the finite
     distances up to the maximum threshold ``M`` (ties change nothing: their intervals have no

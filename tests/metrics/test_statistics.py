@@ -232,5 +232,7 @@ def test_add_auc_rows_is_the_vocap_auc_of_each_row() -> None:
     for _ in range(50):
         d = np.round(rng.exponential(0.04, int(rng.integers(1, 40))), 3)
         d[rng.random(d.size) < 0.1] = np.inf
-        assert add_auc_rows(d[None, :])[0] == pytest.approx(add_auc(d), abs=1e-9)
+        # add_auc takes the reference's float32 accuracy steps (i / N rounded to float32): the
+        # float64 closed form is within their rounding, far below the intervals it serves
+        assert add_auc_rows(d[None, :])[0] == pytest.approx(add_auc(d), abs=1e-5)
     assert add_auc_rows(np.full((2, 3), np.inf)).tolist() == [0.0, 0.0]
