@@ -165,7 +165,7 @@ def make_demo(context: Context) -> Output:
     """``roft-sim demo`` (README's table) and README's picture from the same run."""
     log = CommandLog(context)
     size = " --frames 60 --resolution 320x180" if context.quick else ""
-    log.run(f"roft-sim demo --out out/demo{size} --no-progress")
+    log.run(f"roft-sim demo --out out/demo{size} --no-progress", show_lines=8)
     image = REPO / "docs" / "images" / "overview.png"
     overview_picture(context.work / "out" / "demo", image)
     return Output(regions={"demo": log.markdown()}, images=(image,))
@@ -186,9 +186,7 @@ def overview_picture(demo_dir: Path, out: Path) -> None:
     sequence = open_sequence(list_sequences(demo_dir / "dataset")[0])
     n = len(sequence)
     flows = {k: sequence.flow(k, "gt") for k in range(1, n)}
-    speed = {
-        k: float(np.median(np.hypot(*f.flow_px.reshape(-1, 2).T))) for k, f in flows.items() if f
-    }
+    speed = {k: float(np.hypot(*f.flow_px.reshape(-1, 2).T).mean()) for k, f in flows.items() if f}
     k = max(speed, key=lambda i: speed[i] if i >= n // 3 else -1.0)
     flow = flows[k]
     assert flow is not None
@@ -200,15 +198,18 @@ def overview_picture(demo_dir: Path, out: Path) -> None:
     if mask is not None:
         mask_rgb[mask] = 255
     magnitude = np.hypot(flow.flow_px[..., 0], flow.flow_px[..., 1])
-    flow_rgb = flow_to_rgb(flow, max(1.0, float(np.percentile(magnitude, 99))))
+    moving = magnitude[magnitude > 0.05]
+    flow_rgb = flow_to_rgb(flow, max(1.0, float(np.percentile(moving, 90))) if moving.size else 1.0)
     panels = [
         ("rgb", sequence.rgb(k)),
         ("depth", depth_to_rgb(depth, near, far)),
         ("object mask", mask_rgb),
         ("optical flow (hue: direction)", flow_rgb),
     ]
-    figure = MplFigure(figsize=(12, 5.6), dpi=100)
-    grid = figure.add_gridspec(2, 4, height_ratios=(1, 1.25), hspace=0.35, wspace=0.05)
+    height, width = depth.shape
+    panel_h = 3.0 * height / width  # four 3-inch panels across a 12-inch figure
+    figure = MplFigure(figsize=(12, panel_h + 3.6), dpi=100, layout="constrained")
+    grid = figure.add_gridspec(2, 4, height_ratios=(panel_h, 2.8))
     for i, (title, image) in enumerate(panels):
         ax = figure.add_subplot(grid[0, i])
         ax.imshow(image, interpolation="nearest")
@@ -243,15 +244,17 @@ def overview_picture(demo_dir: Path, out: Path) -> None:
 def make_trajectory_speeds(context: Context) -> Output:
     """Speeds of the synthetic motion profiles (and of the captured motion when present)."""
     log = CommandLog(context)
-    for profile in ("bursty", "continuous"):
-        log.run(
-            f"roft-sim -q trajectory stats --synthetic --profile {profile} --seed 0 --duration-s 30"
-        )
-    if context.trajectories is not None:
+    if context.trajectories is not None:  # the captured splits beside both profiles
         log.run(
             "roft-sim -q trajectory stats --hand-motion --trajectories "
             f"{shlex.quote(str(context.trajectories))}"
         )
+    else:
+        for profile in ("bursty", "continuous"):
+            log.run(
+                f"roft-sim -q trajectory stats --synthetic --profile {profile} --seed 0 "
+                "--duration-s 30"
+            )
     return Output(regions={"trajectory-speeds": log.markdown()})
 
 
