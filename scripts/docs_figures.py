@@ -294,25 +294,23 @@ def make_sweep_delay(context: Context) -> Output:
 
 
 def pivot_table(rows: Sequence[dict[str, str]], parameter: str) -> str:
-    """Trackers x parameter values of a sweep's summary.csv: ``ADD-AUC / e_t``."""
-    value_key = next(k for k in rows[0] if k.startswith(parameter))
-    auc_key = next(k for k in rows[0] if k.startswith("add_auc"))
-    t_key = next(k for k in rows[0] if k.startswith("rmse_t"))
+    """Trackers x values of a sweep's swept parameter, from its summary.csv: ``ADD-AUC / e_t``
+    of the ALL row (every frame of the cell's sequences pooled)."""
+    value_key = parameter if parameter in rows[0] else "value"
     trackers: list[str] = []
-    values: list[str] = []
-    cells: dict[tuple[str, str], str] = {}
+    values: list[float] = []
+    cells: dict[tuple[str, float], str] = {}
     for row in rows:
-        tracker = row.get("tracker") or row.get("label") or ""
-        value = row[value_key]
+        tracker, value = row["tracker"], float(row[value_key])
         trackers += [tracker] if tracker not in trackers else []
         values += [value] if value not in values else []
-        cells[tracker, value] = f"{float(row[auc_key]):.1f} / {float(row[t_key]):.2f}"
-    values.sort(key=float)
-    lines = ["| tracker | " + " | ".join(values) + " |", "|---" * (len(values) + 1) + "|"]
+        cells[tracker, value] = f"{float(row['add_auc_pct']):.1f} / {float(row['rmse_t_cm']):.2f}"
+    values.sort()
+    header = [f"{v:g}" for v in values]
+    lines = ["| tracker | " + " | ".join(header) + " |", "|---" * (len(values) + 1) + "|"]
     for tracker in trackers:
-        lines.append(
-            f"| {tracker} | " + " | ".join(cells.get((tracker, v), "") for v in values) + " |"
-        )
+        row_cells = " | ".join(cells.get((tracker, v), "") for v in values)
+        lines.append(f"| {tracker} | {row_cells} |")
     return "\n".join(lines) + "\n"
 
 

@@ -244,7 +244,10 @@ def test_every_figure_region_has_a_figure_that_makes_it_and_back() -> None:
 
 def test_a_figure_region_is_rewritten_in_place() -> None:
     figures = _figures_module()
-    text = "a\n<!-- figure:x -->\nold\n<!-- /figure:x -->\nb\n<!-- figure:y -->\nkeep\n<!-- /figure:y -->\n"
+    text = (
+        "a\n<!-- figure:x -->\nold\n<!-- /figure:x -->\n"
+        "b\n<!-- figure:y -->\nkeep\n<!-- /figure:y -->\n"
+    )
     new = figures.replace_region(text, "x", "new line")
     assert new == text.replace("old", "new line")
     with pytest.raises(ValueError, match="no region"):
