@@ -340,12 +340,13 @@ def make_paper(context: Context) -> Output:
     shown = (
         log.markdown()
         + "\nTable IV (ALL over the six objects), simulated beside the published numbers:\n\n"
-        + _drop_images(table4)
-        + "\nKendall's tau between the paper's and the simulated order of the nine ROFT rows:\n\n"
-        + "\n".join(taus)
-        + "\n\nThe paper's findings, checked:\n\n"
-        + "\n".join(findings)
-        + "\n\n"
+        + _drop_images(table4).rstrip("\n")
+        + "\n"
+        + "\nKendall's tau between the paper's and the simulated order of the nine ROFT rows:\n"
+        + _markdown_lines(taus)
+        + "\nThe paper's findings, checked:\n"
+        + _markdown_lines(findings)
+        + "\n"
         + _data_note(context)
     )
     attribution = (
@@ -356,6 +357,14 @@ def make_paper(context: Context) -> Output:
         + _data_note(context)
     )
     return Output(regions={"paper": shown, "paper-attribution": attribution})
+
+
+def _markdown_lines(lines: Sequence[str]) -> str:
+    """``Configuration ...:`` headers and their ``- `` items, each header after a blank line."""
+    return "".join(
+        ("\n" + line + "\n\n") if line.startswith("Configuration") else line + "\n"
+        for line in lines
+    )
 
 
 def markdown_sections(text: str) -> dict[str, str]:
@@ -462,29 +471,12 @@ FIGURES: tuple[Figure, ...] = (
         make=_bench("bench_png.py", "--frames 4 --repeats 3", "", "png"),
     ),
     Figure(
-        name="datasets",
-        description="dataset write and read throughput",
-        regions=("datasets",),
-        make=_bench(
-            "bench_datasets.py",
-            "--frames 5 --repeats 1 --resolutions 640x480 --no-memory",
-            "",
-            "datasets",
-        ),
-    ),
-    Figure(
         name="roft-step",
         description="ROFT's step time, stage by stage",
         regions=("roft-step",),
         make=_bench(
             "bench_roft.py", "--frames 60 --repeats 1 --resolutions 640x480", "", "roft-step"
         ),
-    ),
-    Figure(
-        name="harness",
-        description="harness overhead and tracker step times",
-        regions=("harness",),
-        make=_bench("bench_harness.py", "--repeats 1", "", "harness"),
     ),
 )
 """Every figure, in the order a full refresh makes them."""
