@@ -36,9 +36,12 @@ def temp_path_for(path: str | os.PathLike[str]) -> str:
 
 
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes | memoryview) -> None:
-    """Writes ``data`` to ``path`` atomically, creating parent folders."""
+    """Writes ``data`` to ``path`` atomically, creating parent folders (a bare file name is
+    written in the current folder)."""
     path = os.fspath(path)
-    os.makedirs(os.path.dirname(path), exist_ok=True)
+    folder = os.path.dirname(path)
+    if folder:
+        os.makedirs(folder, exist_ok=True)
     tmp = temp_path_for(path)
     try:
         with open(tmp, "wb") as f:
