@@ -508,11 +508,42 @@ def main(
     return configs
 
 
-if __name__ == "__main__":  # pragma: no cover - a maintenance script
-    import sys
+def cli(argv: Sequence[str] | None = None) -> int:
+    """``python -m roft_sim.harness.dope_calibration``: parses ``argv`` and runs :func:`main`
+    or, with ``--fit-motion``, :func:`main_fit_motion`; returns the exit status."""
+    import argparse
 
-    paths_given = [Path(a) for a in sys.argv[1:] if not a.startswith("--")]
-    if "--fit-motion" in sys.argv:
-        main_fit_motion(*paths_given[:1])
+    parser = argparse.ArgumentParser(
+        prog="python -m roft_sim.harness.dope_calibration",
+        description=(
+            "Fit the DOPE-like estimator per Fast-YCB object to the paper's Table I DOPE column "
+            "(about 15 minutes on 2 cores) and print the tables of docs/sensors.md; or, with "
+            "--fit-motion, fit the fast-ycb preset's min_speed_fraction (a few minutes)."
+        ),
+    )
+    parser.add_argument("ycb_dir", nargs="?", type=Path, help="YCB meshes (default: procedural)")
+    parser.add_argument(
+        "trajectories_dir", nargs="?", type=Path, help="captured motion for the captured rows"
+    )
+    mode = parser.add_mutually_exclusive_group()
+    mode.add_argument(
+        "--report-only", action="store_true", help="score the shipped configurations, no fit"
+    )
+    mode.add_argument(
+        "--fit-motion", action="store_true", help="fit the preset's motion speed fraction instead"
+    )
+    args = parser.parse_args(argv)
+    for path in (args.ycb_dir, args.trajectories_dir):
+        if path is not None and not path.is_dir():
+            parser.error(f"{path} is not a directory; expected the YCB or trajectories folder")
+    if args.fit_motion:
+        if args.trajectories_dir is not None:
+            parser.error("--fit-motion takes only YCB_DIR (the preset's motion is synthetic)")
+        main_fit_motion(args.ycb_dir)
     else:
-        main(*paths_given[:2], fit="--report-only" not in sys.argv)
+        main(args.ycb_dir, args.trajectories_dir, fit=not args.report_only)
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover - runs cli()
+    raise SystemExit(cli())

@@ -189,8 +189,7 @@ class FlowSetConfig:
     source: str
     """``gt`` (exact motion field, with validity), ``gt+noise`` (gt plus the ``noise`` model),
     ``dis[:ultrafast|fast|medium|medium4]`` (OpenCV DIS on the rendered rgb, default preset
-    medium; medium4 = medium stopped at 1/4 resolution, 4 times cheaper, less accurate:
-    docs/generate.md, "Round 6"),
+    medium; medium4 = medium stopped at 1/4 resolution, 4 times cheaper, less accurate),
     ``bm[:<window_px>]`` (block matching on the rendered rgb, one vector per 4x4 block, default
     window 8 px; ``nvof-like:bm:16`` is the flow closest to Fast-YCB's real NVOF picture,
     docs/fidelity.md, at about 45 times DIS medium's time), ``nvof-like:<one of those>``
@@ -225,8 +224,7 @@ DEFAULT_FLOW_SETS: tuple[FlowSetConfig, ...] = (
     FlowSetConfig(set_name="nvof_1_slow", source="nvof-model", encoding="s10.5"),
 )
 """``gt``: exact float flow; ``nvof_1_slow``: an NVOF-1.0-like estimate (the exact flow with the
-error model fitted to real NVIDIA hardware flow, 4x4, S10.5; ``nvof-like:dis:medium`` before
-round 15)."""
+error model fitted to real NVIDIA hardware flow, 4x4, S10.5)."""
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

@@ -1,8 +1,7 @@
 """NVOF-like flow from an error model fitted to real NVIDIA hardware flow (spec ``nvof-model``).
 
-Round 14 read real hardware flow (NVOF API 1.0, SLOW, 4x4 grid: ``nvof-hw``) on our rendered
-sequences and measured where its errors are (docs/fidelity.md, "Real NVIDIA hardware flow"). Those
-errors have a simple shape that this module reproduces from the exact motion field, without an
+Real hardware flow (NVOF API 1.0, SLOW, 4x4 grid: ``nvof-hw``), read on our rendered sequences,
+has errors have a simple shape that this module reproduces from the exact motion field, without an
 image matcher, in a few milliseconds per frame on a CPU:
 
 - **Motion boundaries, heavy-tailed.** A block near a boundary mostly gets one of the motions
@@ -27,9 +26,10 @@ image matcher, in a few milliseconds per frame on a CPU:
 Parameters are in pixels of the image the flow is computed on, as the hardware's are (its 4x4
 blocks and matching windows are in pixels whatever the resolution). They were fitted on the
 TUNING objects' hardware flows (003, 004; 1280x720, 150 frames, H100 engine) and are reported on
-the EVALUATION objects (005, 006, 009) in docs/fidelity.md. Not modelled: texture-dependent
-failures (the hardware's error on our low-texture pixels was as small as the model's) and the
-Turing engine's own behaviour (the H100's is not Turing's: docs/sensors.md, ``nvof-hw``).
+the EVALUATION objects (005, 006, 009) by ``python -m roft_sim.sensors.flow_accuracy``. Not
+modelled: texture-dependent failures (the hardware's error on our low-texture pixels was as
+small as the model's) and the Turing engine's own behaviour (the H100's is not Turing's:
+docs/sensors.md, ``nvof-hw``).
 
 Stochastic per frame pair: each ``flow(seq, from_k, to_k)`` draws from
 ``SeedSequence([seed, from_k, to_k])``, so a pair's flow does not depend on which pairs were

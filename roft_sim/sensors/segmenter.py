@@ -189,7 +189,7 @@ def _smooth_field(rng: np.random.Generator, shape: tuple[int, int], sigma_px: fl
     correlation, ``exp(-d^2 / (4 sigma^2))``, then changes by under 7 % between samples) and
     bilinearly upsampled: the field of the full-resolution draw in distribution (std and
     correlation tested against it) for ``step^2`` fewer draws: 1.3 ms instead of 12 ms at
-    640x480 with the default 8 px (round 15; the masks' bytes changed with it)."""
+    640x480 with the default 8 px."""
     h, w = shape
     if sigma_px < 0.3:
         return rng.standard_normal(shape).astype(np.float32)

@@ -262,3 +262,17 @@ def test_spread_prints_each_sequence_with_the_pooled_runs_draws(capsys):
     # the first track alone, drawn as the pooled scoring draws object 0's track 0
     alone = score_dope(configs, {"a_object": tracks["a_object"][:1]}, {"a_object": points})
     assert values[0] == pytest.approx(alone.held["a_object"].add_auc_pct, abs=0.01)
+
+
+def test_cli_help_and_bad_paths_exit_without_fitting(tmp_path, capsys):
+    """``--help`` describes the script and a missing folder is refused before any fit starts."""
+    from roft_sim.harness.dope_calibration import cli
+
+    with pytest.raises(SystemExit) as help_exit:
+        cli(["--help"])
+    assert help_exit.value.code == 0
+    assert "--fit-motion" in capsys.readouterr().out
+    with pytest.raises(SystemExit) as bad_exit:
+        cli([str(tmp_path / "missing")])
+    assert bad_exit.value.code == 2
+    assert "is not a directory" in capsys.readouterr().err

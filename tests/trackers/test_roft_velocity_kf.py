@@ -417,7 +417,7 @@ def test_the_shipped_exact_flow_config_follows_flow_the_default_weighs_as_nvof()
     it: no ``exact_flow_spread_px``); on nearly exact flow (0.05 px, above what the default
     recognises as exact) the default's NVOF-level flow noise (0.5 px at 640 px, a floor of the
     residual-spread estimate) makes the filter trail the weakly observed w_x / w_y, while the
-    shipped config's lets the residual spread set the noise (docs/roft.md, "Round 8": GT
+    shipped config's lets the residual spread set the noise (GT
     inputs, TUM room2 at 640x360, e_w 15.7 -> 6.0 deg/s)."""
     path = scenarios_dir() / "trackers" / "roft_exact_flow.toml"
     exact = load_tracker_config(get_tracker_spec("roft"), path)

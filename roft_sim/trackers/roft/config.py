@@ -122,7 +122,7 @@ class VelocityKFConfig:
     flow of nearly all distinct vectors qualifies (``velocity_kf.VelocityKF._exact_flow_ratio``).
     The
     configured noise describes an estimated flow, whose smooth errors the fit absorbs (its
-    residuals understate its error; docs/roft.md, "Round 8"): exact flow weighed as such made
+    residuals understate its error): exact flow weighed as such made
     the filter trail the turns of a small object by 2-3 frames. Estimated flows have residual
     spreads of several hundredths of a pixel and more (NVOF's quarter-pixel steps alone give
     0.07 px), so for them nothing changes (measured: the stress benchmark's NVOF-like and
@@ -166,8 +166,8 @@ class VelocityKFConfig:
     comparable to the divergence that carries the motion in depth). The median, not each
     pixel's own flow: a noisy or outlying vector must not move the point where its own model is
     evaluated (per-pixel midpoints cost up to 6 ADD-AUC points under the camera-drops preset's
-    flow noise on TUNING). False: at the pixel of frame k-1 (the reference). Chosen on TUNING
-    (docs/roft.md, round 6): GT inputs TUM room1 640x360 ADD-AUC 88.9 -> 91.1 %, e_v 3.63 ->
+    flow noise on TUNING). False: at the pixel of frame k-1 (the reference). Chosen on TUNING:
+    GT inputs TUM room1 640x360 ADD-AUC 88.9 -> 91.1 %, e_v 3.63 ->
     2.54 cm/s."""
     finite_motion_correction: bool = True
     """The flow is the image motion of the finite rigid motion over the interval, which the
@@ -179,7 +179,7 @@ class VelocityKFConfig:
     interval mean (the constant model's), or before its first update the pixels' own
     least-squares twist. The correction is second order in the motion, so slow frames are
     untouched; the filter's own twist, not a fit of one frame's noisy pixels, keeps it from
-    amplifying noise (a per-frame fit as ``x`` raised TUNING's e_v, docs/roft.md "Round 9").
+    amplifying noise (a per-frame fit as ``x`` raised TUNING's e_v).
     False: the linear model alone (the reference)."""
     depth_band_m: float | None = 0.15
     """Use only pixels whose depth is within this distance of the median depth of the sampled
@@ -193,7 +193,7 @@ class VelocityKFConfig:
     disagrees with the largest part's rigid motion (``occluder_probability``) is not used. A
     mask that spills onto the hand holding the object otherwise bends the weakly observed
     out-of-plane rotation of a small object by 100-200 deg/s with exact or white-noise flow
-    (docs/roft.md, "Round 8"). None (``"none"`` in TOML): off (the reference)."""
+    (docs/roft.md, ``occluder_parts``). None (``"none"`` in TOML): off (the reference)."""
     occluder_probability: float = 0.999
     """Probability of the prediction region a part's mean flow residual must leave to be
     dropped as an occluder."""
@@ -209,7 +209,7 @@ class VelocityKFConfig:
     depth edge or off the object, are not used). The flow observes motion along the line of
     sight only through the object's image growing or shrinking, which a small or thin object
     barely shows; hardware flow smoothed across its border then read as a recession of 1.4 m/s
-    on a 2 cm-thick bar (docs/roft.md, "Round 12"). False: the flow alone (the reference,
+    on a 2 cm-thick bar (docs/roft.md, ``depth_rate``). False: the flow alone (the reference,
     paper eq. 9)."""
     depth_rate_sigma_min_m: float = 0.001
     """Floor of the depth-change noise of one point over one interval [m]: about the RMS
@@ -272,18 +272,17 @@ class VelocityKFConfig:
     selection_memory: float = 30.0
     """``auto``: memory of the running means of each model's whitened prediction error and of
     the per-update log ratios behind the confidence [updates]. Chosen on TUNING (stress medium,
-    default inputs, round 5): 12 and 20 raised e_v (chaos 21.5 -> 22.5 cm/s with 12)."""
+    default inputs): 12 and 20 raised e_v (chaos 21.5 -> 22.5 cm/s with 12)."""
     selection_margin: float = 0.9
     """``auto``: the constant-acceleration model counts as better when ``L_a < margin L_c`` (its
     mean whitened squared error below ``margin`` times the constant model's); the ratio weight
-    is one half there. Round 5 chose 0.7 with an evidence ramp ``1 - (1 - 1/memory)^n`` in
-    place of the confidence; round 6, with the confidence, chose 0.9 on TUNING (GT inputs and
+    is one half there. Chosen on TUNING (GT inputs and
     default inputs, four sequences: 0.8 and 0.9 within 0.1 cm/s of each other in summed
     e_v; docs/roft.md)."""
     selection_sharpness: float = 6.0
     """``auto``: exponent ``g`` of the weight's ratio (above); 6 puts the ratio weight at 0.95
     for ``L_a / L_c = 0.61 margin`` and 0.10 for ``L_a / L_c = 1.44 margin``. 12 changed the
-    TUNING numbers by less than 0.1 cm/s (round 5)."""
+    TUNING numbers by less than 0.1 cm/s."""
     selection_instant_ratio: float = 4.0
     """``auto``: each weight is also multiplied by ``1 / (1 + (s_a / (ratio s_c))^g)`` of the
     current update's scores: half when the constant-acceleration model's current prediction
@@ -435,9 +434,9 @@ class PoseUKFConfig:
     the velocity of hand-held motion decorrelates within a few tenths of a second, so a stale
     twist must not carry the pose on for as long as the flow is missing. Source: this Gaussian
     fits the pooled autocorrelation of v on the stress benchmark's TUNING sequences (0.98,
-    0.93, 0.71, 0.27 at 1, 2, 5, 10 frames; sigma = 6.0 frames at 30 fps = 0.2 s; docs/roft.md,
-    "Round 11"). None: constant velocity (the reference). Frames with a velocity measurement are
-    predicted with constant velocity."""
+    0.93, 0.71, 0.27 at 1, 2, 5, 10 frames; sigma = 6.0 frames at 30 fps = 0.2 s). None: constant
+    velocity (the reference). Frames with a velocity measurement are predicted with constant
+    velocity."""
     coast_correlation_time_w_s: float | None = 0.11
     """The same for the angular velocity w [s] (TUNING autocorrelation 0.95, 0.83, 0.34 at 1, 2,
     5 frames: sigma = 3.4 frames = 0.11 s). None: constant (the reference)."""
