@@ -11,4 +11,5 @@ cd "$(dirname "$0")/.."
 bash scripts/setup.sh dev,ray,process,bags
 .venv/bin/python -m mypy
 .venv/bin/lint-imports --no-cache
-exec .venv/bin/python -m pytest "$@"
+# -n auto: one pytest worker per core (pytest-xdist); `-n 0` runs in this process (for -x, --pdb)
+exec .venv/bin/python -m pytest -n auto "$@"

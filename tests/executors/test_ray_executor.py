@@ -56,6 +56,7 @@ def local_ray():
     ray.shutdown()
 
 
+@pytest.mark.slow  # the default run keeps one Ray sweep (the CLI's) and the error paths
 def test_ray_actors_keep_worker_state_and_report_progress(local_ray):
     seen: list[int] = []
     executor = RayExecutor()
@@ -84,6 +85,7 @@ def test_ray_errors_name_the_unit_and_keep_roft_sim_errors(local_ray):
         list(executor.map_unordered(_raise_roft_sim_error, [1]))
 
 
+@pytest.mark.slow  # the default run keeps one Ray sweep (the CLI's) and the error paths
 def test_a_dead_ray_worker_is_restarted_and_its_unit_retried(local_ray, tmp_path):
     """Unit 2's actor process hard-exits on the first attempt: Ray restarts the actor, retries
     the unit, and the run completes with every file correct."""
@@ -115,6 +117,7 @@ def test_a_ray_worker_that_keeps_dying_stops_the_run_and_a_rerun_completes(local
     assert final == {f"{i}.bin": unit_bytes(i) for i in range(6)}
 
 
+@pytest.mark.slow  # the default run keeps one Ray sweep (the CLI's) and the error paths
 def test_a_sweep_on_ray_gives_the_serial_bytes(local_ray, tmp_path):
     from roft_sim.harness.sweep import SweepConfig, SweptParameter, run_sweep
 

@@ -62,7 +62,7 @@ def regression_stream(roft_seq):
     return make
 
 
-@settings(max_examples=budget(40, 600), deadline=None, suppress_health_check=SLOW_OK)
+@settings(max_examples=budget(15, 600), deadline=None, suppress_health_check=SLOW_OK)
 @given(data=st.data())
 def test_roft_replay_gives_the_zero_delay_estimate(roft_seq, data):
     """ROFT under any pose timing, loss, delivery and outlier faults, and camera/flow faults."""

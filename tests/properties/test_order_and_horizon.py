@@ -44,7 +44,7 @@ def _within_horizon(observations):
 
 
 @pytest.mark.parametrize("tracker, config", TRACKERS, ids=[t for t, _ in TRACKERS])
-@settings(max_examples=budget(30, 500), deadline=None, suppress_health_check=SLOW_OK)
+@settings(max_examples=budget(15, 500), deadline=None, suppress_health_check=SLOW_OK)
 @given(data=st.data())
 def test_any_arrival_order_within_the_horizon_gives_the_same_estimates(
     roft_seq, tracker, config, data
@@ -105,7 +105,7 @@ def _late_poses(draw, n_frames: int):
 
 
 @pytest.mark.parametrize("tracker, config", TRACKERS, ids=[t for t, _ in TRACKERS])
-@settings(max_examples=budget(25, 400), deadline=None, suppress_health_check=SLOW_OK)
+@settings(max_examples=budget(12, 400), deadline=None, suppress_health_check=SLOW_OK)
 @given(data=st.data())
 def test_poses_older_than_the_horizon_are_dropped_counted_and_change_nothing(
     roft_seq, tracker, config, data

@@ -65,7 +65,7 @@ def test_the_no_burst_bounds(bounds):
     assert 0.01 < bound_m < 0.06 and np.radians(0.2) < bound_rad < np.radians(10)
 
 
-@settings(max_examples=budget(8, 150), deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=budget(4, 150), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(start=st.integers(12, 48), length=st.integers(1, 36))
 @example(start=12, length=36)
 @example(start=24, length=36)  # the slowest recovery on the measured grid

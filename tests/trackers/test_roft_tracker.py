@@ -82,7 +82,7 @@ GATED = dataclasses.replace(
 
 
 @pytest.mark.parametrize("config", [TINY, GATED], ids=["reference", "gated"])
-@settings(max_examples=scaled_examples(20))
+@settings(max_examples=scaled_examples(8))
 @given(data=st.data())
 def test_replay_makes_delayed_poses_exact(tiny_seq, config, data):
     """After every pose captured up to frame k has arrived, the estimate at k equals (1e-9) the
@@ -105,7 +105,7 @@ def test_replay_makes_delayed_poses_exact(tiny_seq, config, data):
             _assert_estimates_equal(est_delayed[k], est_prompt[k])
 
 
-@settings(max_examples=scaled_examples(8))
+@settings(max_examples=scaled_examples(4))
 @given(data=st.data())
 def test_pose_arrivals_and_replays_leave_the_reported_twist_alone(tiny_seq, data):
     """Issue 14's saw-tooth hypothesis, "each replay disturbs the velocity state", cannot hold:
@@ -487,7 +487,7 @@ def _check_well_formed(e: Estimate) -> None:
     assert np.linalg.eigvalsh(P).min() > 0
 
 
-@settings(max_examples=scaled_examples(25))
+@settings(max_examples=scaled_examples(10))
 @given(data=st.data())
 def test_well_formed_after_every_step_under_random_fault_schedules(tiny_seq, data):
     seq = tiny_seq
