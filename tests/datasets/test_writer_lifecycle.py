@@ -196,6 +196,7 @@ def test_writer_checks_frame_index_and_resolution(tmp_path: Path):
         writer.write_frame(next(dataset_frames(small)))
 
 
+@pytest.mark.slow  # writes long sequences to measure memory
 def test_memory_stays_flat_in_sequence_length(tmp_path: Path):
     """Writing 6x more frames needs no more Python heap (frames stream to disk)."""
     import gc

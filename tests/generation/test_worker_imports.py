@@ -28,6 +28,7 @@ print(sorted(m for m in sys.modules if m in unwanted))
 """
 
 
+@pytest.mark.slow  # a fresh interpreter generating frames
 def test_generating_frames_does_not_import_scipy_signal_trimesh_or_the_network():
     res = subprocess.run(
         [sys.executable, "-c", _SCRIPT], capture_output=True, text=True, timeout=300

@@ -53,7 +53,7 @@ def _observations_equal(a, b) -> bool:
     return True
 
 
-@settings(max_examples=budget(15, 300), deadline=None, suppress_health_check=SLOW_OK)
+@settings(max_examples=budget(8, 300), deadline=None, suppress_health_check=SLOW_OK)
 @given(stream=faulted_streams(SEQ, fault_configs()))
 def test_same_seed_same_observations_and_bit_identical_estimates(stream):
     first = stream.observations()

@@ -36,6 +36,7 @@ def test_a_script_without_mujoco_gl_renders_offscreen():
 
 
 @pytest.mark.render
+@pytest.mark.slow  # a fresh interpreter importing MuJoCo
 def test_mujoco_imported_first_gives_an_actionable_error():
     done = _run(pre="\nimport mujoco")
     assert done.returncode != 0

@@ -6,11 +6,13 @@ from __future__ import annotations
 import shutil
 from pathlib import Path
 
+import pytest
 from plugin_runs import run_pytest
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "testing_my_tracker"
 
 
+@pytest.mark.slow  # runs the example project's own pytest
 def test_the_example_project_passes_its_property_tests(tmp_path):
     copy = tmp_path / "testing_my_tracker"
     shutil.copytree(

@@ -81,6 +81,7 @@ def test_example_plugin_registered_by_its_entry_point(
     assert NAME in capsys.readouterr().out
 
 
+@pytest.mark.slow  # pip-installs the example plugin
 def test_example_plugin_pip_installs_and_runs_through_roft_sim_run(
     tmp_path, monkeypatch, tiny_seq, clean_plugin_modules, capsys
 ):
