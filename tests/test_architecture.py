@@ -100,7 +100,10 @@ def test_the_test_command_checks_the_contracts():
     def position(word: str) -> int:
         return next(i for i, c in enumerate(commands) if word in c)
 
-    assert position("-m mypy") < position("lint-imports") < position("-m pytest")
+    assert position("lint-imports") < position("-m pytest")
+    assert position("-m mypy") < position("-m pytest")  # started beside the tests ...
+    assert position("-m pytest") < position('wait "$mypy_pid"')  # ... and its status decides
+    assert any(c.startswith("exit 1") for c in commands[position('wait "$mypy_pid"') :])
 
 
 def test_lint_imports_keeps_every_contract():

@@ -145,7 +145,11 @@ _FIND = settings(
 
 @pytest.mark.parametrize(
     "tracker, config",
-    [("naive-delay", POSE_ONLY), ("roft", ROFT_NO_SYNC)],
+    [
+        ("naive-delay", POSE_ONLY),
+        # slow: the fixed 1-frame regression stream above already fails ROFT without pose sync
+        pytest.param("roft", ROFT_NO_SYNC, marks=pytest.mark.slow),
+    ],
     ids=["naive-delay", "roft-without-pose-sync"],
 )
 def test_apply_as_current_fails_delay_invariance(roft_seq, tracker, config, capsys):
