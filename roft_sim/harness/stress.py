@@ -376,6 +376,26 @@ class Verdict:
     """What the replicates are, e.g. ``2 sequences x 1 flow x 3 seeds``."""
     advice: tuple[SeedAdvice, ...] = ()
     """Per preset, the seeds a :data:`DETECTABLE_ADD_AUC_POINTS`-point difference needs."""
+    evidence: tuple[tuple[str, PairedSet], ...] = ()
+    """Per preset and baseline, ``(preset, paired set)``: every comparison the line rests on,
+    wins included (:meth:`evidence_rows`)."""
+
+    def evidence_rows(self) -> list[str]:
+        """Markdown table rows ``| split | inputs | preset | baseline | pairs | ADD-AUC | e_t |
+        e_a |``: each verdict metric's mean difference subject - baseline with its 95 %
+        interval and verdict word."""
+        rows = []
+        for preset, pairs in self.evidence:
+            cells = [
+                f"{c.difference.text('+.2f')} ({c.verdict})"
+                for c in (pairs.comparisons[key] for key in VERDICT_METRICS)
+            ]
+            rows.append(
+                f"| {self.split.upper()} | {self.inputs} | {preset} | {pairs.b} | {pairs.pairs} | "
+                + " | ".join(cells)
+                + " |"
+            )
+        return rows
 
     def line(self, subject: str, baselines: Sequence[str]) -> str:
         """The verdict sentence, with what it rests on and the seeds it would need."""
@@ -590,6 +610,7 @@ def _verdicts(
     verdicts = {}
     for split in splits:
         wins, fails, advice, pairs = [], [], [], []
+        evidence: list[tuple[str, PairedSet]] = []
         keys: set[CellKey] = set()
         for preset in presets:
             if (split, subject, preset) not in replicates:
@@ -599,6 +620,7 @@ def _verdicts(
             lost, sets = _judge_preset(replicates, split, preset, subject, baselines)
             advice.append(_seed_advice(preset, sets, own))
             pairs += [p.pairs for p in sets]
+            evidence += [(fault_spec_name(preset), s) for s in sets]
             if lost:
                 fails.append(f"{fault_spec_name(preset)}: " + ", ".join(lost))
             else:
@@ -613,6 +635,7 @@ def _verdicts(
             pairs=min(pairs, default=0),
             design=_design(sorted(keys)),
             advice=tuple(advice),
+            evidence=tuple(evidence),
         )
     return verdicts
 
@@ -863,7 +886,7 @@ def format_stress_report(
                 out += _table(f"### {split.upper()} sequence {name}", rows, "preset")
     out.append("## Verdict")
     out.append("")
-    recommendations = []
+    recommendations, evidence = [], []
     for verdicts in (
         result.scores.default_verdicts,
         result.scores.verdicts,
@@ -872,6 +895,7 @@ def format_stress_report(
             if split in verdicts:
                 out.append(verdicts[split].line(subject, baselines))
                 recommendations.append(verdicts[split].recommendation())
+                evidence += verdicts[split].evidence_rows()
     out += [
         "",
         "A preset is a win when, on the cells both trackers ran (same sequence, flow and seed), "
@@ -879,5 +903,15 @@ def format_stress_report(
         "verdict metric and baseline (docs/statistics.md); a failure shows the difference "
         "subject - baseline with its interval.",
     ]
+    if evidence:
+        labels = " | ".join(VERDICT_METRICS.values())
+        out += [
+            "",
+            f"### Paired differences behind the verdicts ({subject} - baseline, 95 % intervals)",
+            "",
+            f"| split | inputs | preset | baseline | pairs | {labels} |",
+            "|" + "---|" * (5 + len(VERDICT_METRICS)),
+            *evidence,
+        ]
     out += ["", "## Seeds needed", "", *recommendations]
     return "\n".join(out) + "\n"

@@ -290,6 +290,17 @@ def test_verdict_on_the_default_inputs_comes_first_and_ignores_other_flows(
     assert advice.seeds is not None and advice.seeds >= 1
     assert f"paper: {advice.seeds} (paired sd " in seeds_needed
     assert f"### EVALUATION: default inputs ({DEFAULT_FLOW})" in report
+    # the win shows the intervals it rests on: one row per baseline, every metric "better"
+    evidence = report.split("### Paired differences behind the verdicts (roft - baseline")[1]
+    win_rows = [
+        row.split(" | ")
+        for row in evidence.splitlines()
+        if row.startswith(f"| EVALUATION | default inputs ({DEFAULT_FLOW}) | paper |")
+    ]
+    assert [(row[3], row[4]) for row in win_rows] == [(b, "4") for b in baselines]
+    assert all(" | ".join(row).count("] (better)") == 3 for row in win_rows)
+    add_auc = default.evidence[0][1].comparisons["add_auc_pct"].difference
+    assert add_auc.low > 0 and f"{add_auc.text('+.2f')} (better)" in win_rows[0][5]
 
 
 def test_a_verdict_on_one_replicate_calls_no_win_and_asks_for_seeds(tmp_path: Path) -> None:
