@@ -850,11 +850,11 @@ def per_object_motion(
     simulated one, from a row that measures motion more than anything else: ROFT with the masks
     as they arrive (``<configuration>_no_mask_sync``, the paper's "w/o segm. sync."). Its
     velocity is read from flow on a mask 6-12 frames old, so its error grows with how far the
-    object moves in that delay; the object,
-    its size and the networks are the same in both, so a paper / sim ratio of its e_v or e_w
-    above 1 says the paper's sequence moved faster relative to its size than ours. Put next to
-    the plain row's ADD-AUC gap, the ratios say how much of a per-object difference follows the
-    motion, which a simulator drawing one motion distribution for every object cannot reproduce.
+    object moves in that delay; the object, its size and the networks are the same in both, so
+    a paper / sim ratio of its e_v or e_w above 1 says the paper's sequence moved faster
+    relative to its size than ours. Put next to the plain row's ADD-AUC gap, the ratios say how
+    much of a per-object difference follows the motion, which a simulator drawing one motion
+    distribution for every object cannot reproduce.
 
     Args:
         results: per row key, per entry, the metrics.

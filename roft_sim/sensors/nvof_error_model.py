@@ -1,8 +1,8 @@
 """NVOF-like flow from an error model fitted to real NVIDIA hardware flow (spec ``nvof-model``).
 
 Real hardware flow (NVOF API 1.0, SLOW, 4x4 grid: ``nvof-hw``), read on our rendered sequences,
-has errors have a simple shape that this module reproduces from the exact motion field, without an
-image matcher, in a few milliseconds per frame on a CPU:
+has errors of a simple shape, which this module reproduces from the exact motion field, without
+an image matcher, in a few milliseconds per frame on a CPU:
 
 - **Motion boundaries, heavy-tailed.** A block near a boundary mostly gets one of the motions
   around it, whole, rather than a blend: the hardware's boundary end-point error has a low median
