@@ -191,7 +191,7 @@ def test_boundary_error_relative_to_the_object_does_not_depend_on_the_camera_res
 
 
 def test_noisy_boundary_on_the_grown_box_equals_the_full_image_formula():
-    # oracle: the signed distance and threshold over the whole image (the code before the box)
+    # oracle: the signed distance and threshold computed over the whole image, no bounding box
     from roft_sim.sensors.segmenter import _noisy_boundary, _signed_distance, _smooth_field
 
     rng = np.random.default_rng(7)
