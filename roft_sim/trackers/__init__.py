@@ -11,7 +11,6 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
-from roft_sim.errors import PluginError
 from roft_sim.records import Estimate, Observation
 from roft_sim.trackers import base
 from roft_sim.trackers.base import (
@@ -19,6 +18,7 @@ from roft_sim.trackers.base import (
     Tracker,
     TrackerContext,
     TrackerSpec,
+    checked_step,
     close_tracker,
     create_tracker,
     discover_trackers,
@@ -32,6 +32,7 @@ __all__ = [
     "Tracker",
     "TrackerContext",
     "TrackerSpec",
+    "checked_step",
     "close_tracker",
     "create_tracker",
     "discover_trackers",
@@ -74,12 +75,5 @@ def run_tracker(
     tracker.reset(initial)
     estimates = []
     for observation in observations:
-        estimate = tracker.step(observation)
-        if not isinstance(estimate, Estimate) or estimate.k != observation.k:
-            got = getattr(estimate, "k", type(estimate).__name__)
-            raise PluginError(
-                f"{type(tracker).__name__}.step(k={observation.k}) returned {got!r}; a tracker "
-                "must return an Estimate with the observation's k"
-            )
-        estimates.append(estimate)
+        estimates.append(checked_step(tracker, observation))
     return estimates

@@ -41,7 +41,21 @@ __all__ = [
     "load_tracker_config",
     "create_tracker",
     "close_tracker",
+    "checked_step",
 ]
+
+
+def checked_step(tracker: Tracker, observation: Observation) -> Estimate:
+    """``tracker.step(observation)``, checked: a :class:`PluginError` unless it returned an
+    :class:`Estimate` for the observation's frame."""
+    estimate = tracker.step(observation)
+    if not isinstance(estimate, Estimate) or estimate.k != observation.k:
+        got = getattr(estimate, "k", type(estimate).__name__)
+        raise PluginError(
+            f"{type(tracker).__name__}.step(k={observation.k}) returned {got!r}; a tracker must "
+            "return an Estimate with the observation's k"
+        )
+    return estimate
 
 
 @runtime_checkable

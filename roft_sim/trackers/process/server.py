@@ -18,8 +18,14 @@ from typing import Any
 import numpy as np
 
 from roft_sim.errors import PluginError, RoftSimError
-from roft_sim.records import DepthRenderer, Estimate, ObjectModel
-from roft_sim.trackers.base import Tracker, TrackerContext, TrackerSpec, create_tracker
+from roft_sim.records import DepthRenderer, ObjectModel
+from roft_sim.trackers.base import (
+    Tracker,
+    TrackerContext,
+    TrackerSpec,
+    checked_step,
+    create_tracker,
+)
 from roft_sim.trackers.process import codec
 from roft_sim.trackers.process.codec import ProtocolError
 from roft_sim.trackers.process.shared import SharedReader
@@ -116,14 +122,7 @@ def _step(
     observation = codec.observation_from_message(
         message, intrinsics=hello.intrinsics, shared=shared
     )
-    estimate = tracker.step(observation)
-    if not isinstance(estimate, Estimate) or estimate.k != observation.k:
-        got = getattr(estimate, "k", type(estimate).__name__)
-        raise PluginError(
-            f"{type(tracker).__name__}.step(k={observation.k}) returned {got!r}; a tracker must "
-            "return an Estimate with the observation's k"
-        )
-    return codec.estimate_message(estimate)
+    return codec.estimate_message(checked_step(tracker, observation))
 
 
 def serve(
