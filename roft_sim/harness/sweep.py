@@ -536,7 +536,6 @@ def _cell_rows(
     return rows
 
 
-_PAIRED_METRICS = ("add_auc_pct", "rmse_t_cm", "rmse_a_deg", "rmse_v_cmps", "rmse_w_dps")
 PAIRED_COLUMNS: tuple[Column, ...] = (
     Column("tracker", "tracker", align="left"),
     Column("versus", "versus", align="left"),
@@ -551,7 +550,7 @@ PAIRED_CSV_COLUMNS: tuple[Column, ...] = (
     *PAIRED_COLUMNS[:6],
     *(
         Column(f"{k}_{part}", f"{k}_{part}")
-        for k in _PAIRED_METRICS
+        for k in REPLICATE_METRICS
         for part in ("diff", "lo", "hi", "verdict")
     ),
 )
@@ -585,7 +584,7 @@ def paired_rows(
             if label not in trackers:
                 continue
             key = (label, labels[0], fault_label, value, flow)
-            pairs = paired_set(label, labels[0], trackers[label], reference, key, _PAIRED_METRICS)
+            pairs = paired_set(label, labels[0], trackers[label], reference, key, REPLICATE_METRICS)
             row: dict[str, Any] = {
                 "tracker": label,
                 "versus": labels[0],
