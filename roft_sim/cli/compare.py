@@ -48,13 +48,6 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     parser.set_defaults(func=_run)
 
 
-def _interval(x: Any) -> dict[str, float | None]:
-    def num(v: float) -> float | None:
-        return v if math.isfinite(v) else None
-
-    return {"estimate": num(x.estimate), "low": num(x.low), "high": num(x.high)}
-
-
 def _summary(result: Any) -> dict[str, Any]:
     return {
         "run_a": str(result.run_a.folder),
@@ -66,7 +59,7 @@ def _summary(result: Any) -> dict[str, Any]:
                 "metric": m.metric,
                 "a": m.a if math.isfinite(m.a) else None,
                 "b": m.b if math.isfinite(m.b) else None,
-                "difference": _interval(m.difference),
+                "difference": m.difference.json_fields(),
                 "verdict": m.verdict,
                 "block": m.block,
             }
@@ -77,8 +70,8 @@ def _summary(result: Any) -> dict[str, Any]:
                 "category": w.category,
                 "definition": w.definition,
                 "frames": w.frames,
-                "t_cm": _interval(w.t_cm),
-                "a_deg": _interval(w.a_deg),
+                "t_cm": w.t_cm.json_fields(),
+                "a_deg": w.a_deg.json_fields(),
             }
             for w in result.where
         ],

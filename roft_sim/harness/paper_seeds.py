@@ -29,7 +29,6 @@ from roft_sim.harness.replicates import stable_rng
 from roft_sim.metrics.statistics import (
     INTERVAL_METHOD,
     METRIC_RANGES,
-    Interval,
     bootstrap_percentile_interval,
     mean_interval,
 )
@@ -228,12 +227,6 @@ def uncertainty_json(
 ) -> dict[str, Any]:
     """The same as JSON-ready data for ``paper.json``."""
 
-    def interval(x: Interval) -> dict[str, float | None]:
-        return {
-            k: (v if math.isfinite(v) else None)
-            for k, v in (("estimate", x.estimate), ("low", x.low), ("high", x.high))
-        }
-
     return {
         "seeds": list(by_seed),
         "method": INTERVAL_METHOD,
@@ -245,7 +238,7 @@ def uncertainty_json(
             for title, (_, rows) in noise_tables(by_seed, paper, entries, layout).items()
         },
         "kendall_tau": [
-            {"configuration": t["configuration"], "metric": t["metric"], **interval(t["tau"])}
+            {"configuration": t["configuration"], "metric": t["metric"], **t["tau"].json_fields()}
             for t in tau_intervals(by_seed, paper, configurations, layout)
         ],
     }

@@ -125,6 +125,13 @@ class Interval:
             return f"{self.estimate:{fmt}} (n={self.n})"
         return f"{self.estimate:{fmt}} [{self.low:{fmt}}, {self.high:{fmt}}]"
 
+    def json_fields(self) -> dict[str, float | None]:
+        """``{"estimate", "low", "high"}`` for JSON, a missing (non-finite) value as None."""
+        return {
+            k: (v if math.isfinite(v) else None)
+            for k, v in (("estimate", self.estimate), ("low", self.low), ("high", self.high))
+        }
+
 
 def _t_half_width(values: F64, confidence: float) -> F64:
     """(R,) Student-t half width of the mean of each row of (R, n) ``values``."""
