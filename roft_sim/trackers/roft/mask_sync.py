@@ -495,8 +495,9 @@ def track_points(points: TrackedPoints, flow: FlowField, *, cleanup: str) -> Tra
     m = first.size
     extra = len(new) if new is not None else 0
     u_out, v_out = np.empty(m + extra), np.empty(m + extra)
-    np.take(u, first, out=u_out[:m])
-    np.take(v, first, out=v_out[:m])
+    # mode="clip": the indices are valid, and "raise" with ``out`` buffers a copy (10x slower)
+    np.take(u, first, out=u_out[:m], mode="clip")
+    np.take(v, first, out=v_out[:m], mode="clip")
     if new is not None and extra:
         _, new_u, new_v = new.strided(1)
         u_out[m:] = new_u
