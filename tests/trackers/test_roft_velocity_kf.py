@@ -484,6 +484,24 @@ def test_only_dense_flow_of_distinct_vectors_counts_as_exact():
         np.testing.assert_allclose(kf.flow_sigma_px**2, R * ratio, rtol=1e-12)
 
 
+def test_distinct_vectors_counts_as_np_unique():
+    """The count of distinct flow rows (a sort and a count) equals ``np.unique``'s on rows with
+    repeats, rows equal in one component only, signed zeros (equal), NaNs (one value to
+    np.unique) and no rows at all."""
+    rng = np.random.default_rng(5)
+    base = rng.integers(-3, 4, size=(200, 2)).astype(np.float64) / 4.0
+    signed = base.copy()
+    signed[::7] = -0.0
+    with_nan = base.copy()
+    with_nan[3, 0] = with_nan[9, 1] = np.nan
+    for y in (base, signed, with_nan, np.zeros((0, 2)), rng.normal(size=(50, 2))):
+        m = FlowMeasurement(
+            y_px=y, J=np.zeros((len(y), 2, 6)), u_px=np.zeros(len(y)), v_px=np.zeros(len(y))
+        )
+        expected = np.unique(np.ascontiguousarray(y).view(np.complex128)).size
+        assert m.distinct_vectors() == expected
+
+
 def _object_and_hand(hand_twist, hand_in_front=True):
     """An 80 x 80 px tilted patch at 0.65 m (the object, turning with ``_OBJECT_TWIST``) and a
     50 x 30 px patch 5 cm in front of it or 5 cm behind it (the hand), one mask over both, exact
