@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from roft_sim.bags.msgdefs import schema_text
-from roft_sim.datasets.atomic_files import temp_path_for
+from roft_sim.datasets.atomic_files import atomic_path
 from roft_sim.errors import ConfigError
 
 __all__ = [
@@ -154,19 +154,10 @@ def open_bag(path: str | os.PathLike[str]) -> Iterator[BagWriter]:
         ConfigError: the ``bags`` extra (``mcap``, ``mcap-ros2-support``) is not installed.
     """
     require_bags_extra()
-    path = os.fspath(path)
-    os.makedirs(os.path.dirname(path) or ".", exist_ok=True)
-    tmp = temp_path_for(path)
-    try:
-        with open(tmp, "wb") as stream:
-            writer = BagWriter(stream)
-            yield writer
-            writer.finish()
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.remove(tmp)
-        raise
+    with atomic_path(path) as tmp, open(tmp, "wb") as stream:
+        writer = BagWriter(stream)
+        yield writer
+        writer.finish()
 
 
 def require_bags_extra() -> None:

@@ -10,10 +10,12 @@ from __future__ import annotations
 
 import contextlib
 import os
+from collections.abc import Iterator
 from pathlib import Path
 from typing import TextIO
 
 __all__ = [
+    "atomic_path",
     "atomic_write_bytes",
     "atomic_write_text",
     "remove_temp_files",
@@ -35,22 +37,30 @@ def temp_path_for(path: str | os.PathLike[str]) -> str:
     return os.path.join(folder, f".{name}.{os.getpid()}{_TEMP_SUFFIX}")
 
 
-def atomic_write_bytes(path: str | os.PathLike[str], data: bytes | memoryview) -> None:
-    """Writes ``data`` to ``path`` atomically, creating parent folders (a bare file name is
-    written in the current folder)."""
+@contextlib.contextmanager
+def atomic_path(path: str | os.PathLike[str]) -> Iterator[str]:
+    """The temp path (:func:`temp_path_for`) to write ``path``'s content to: renamed to ``path``
+    when the ``with`` block ends normally, removed when it raises (``path`` is then left as it
+    was). Creates the parent folders (a bare file name is written in the current folder).
+    Close the file before the block ends."""
     path = os.fspath(path)
     folder = os.path.dirname(path)
     if folder:
         os.makedirs(folder, exist_ok=True)
     tmp = temp_path_for(path)
     try:
-        with open(tmp, "wb") as f:
-            f.write(data)
+        yield tmp
         os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
             os.remove(tmp)
         raise
+
+
+def atomic_write_bytes(path: str | os.PathLike[str], data: bytes | memoryview) -> None:
+    """Writes ``data`` to ``path`` atomically (:func:`atomic_path`)."""
+    with atomic_path(path) as tmp, open(tmp, "wb") as f:
+        f.write(data)
 
 
 def atomic_write_text(path: str | os.PathLike[str], text: str) -> None:

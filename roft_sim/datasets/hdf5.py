@@ -21,7 +21,6 @@ The ``.h5`` therefore exists only when complete; a ``.parts`` folder marks an un
 
 from __future__ import annotations
 
-import contextlib
 import io
 import json
 import os
@@ -33,7 +32,7 @@ import h5py
 import numpy as np
 from numpy.typing import NDArray
 
-from roft_sim.datasets.atomic_files import atomic_write_bytes, temp_path_for
+from roft_sim.datasets.atomic_files import atomic_path, atomic_write_bytes
 from roft_sim.datasets.base import GT_MASK_SET, DetectorPoses
 from roft_sim.datasets.fast_ycb_codec import S10_5_SCALE
 from roft_sim.datasets.frames import GT_FULL_MASK_SET, DatasetFrame
@@ -195,52 +194,45 @@ class Hdf5Writer(StreamingWriter):
         mask_sets += list(metadata["sets"]["mask"])
         for name in mask_sets:  # a detector that missed on every frame still gets its dataset
             layouts.setdefault(f"masks/{name}/mask", ("uint8", self.settings.intrinsics.shape))
-        tmp = temp_path_for(self.sequence_path)
-        try:
-            with h5py.File(tmp, "w") as f:
-                self._write_root_attributes(f, metadata)
-                rows = self._row_datasets(f, metadata, mask_sets, layouts)
-                targets = {}
-                for key, (dtype, shape) in sorted(layouts.items()):
-                    targets[key] = f.create_dataset(
-                        key,
-                        shape=(n, *shape),
-                        dtype=dtype,
-                        chunks=(1, *shape),
-                        fillvalue=0,
-                        **self._kw(shuffle=dtype != "uint8"),
-                    )
-                    _describe(targets[key], key, dtype)
-                buffers = [np.zeros((_ROW_BLOCK, *d.shape[1:]), d.dtype) for d, _ in rows]
+        with atomic_path(self.sequence_path) as tmp, h5py.File(tmp, "w") as f:
+            self._write_root_attributes(f, metadata)
+            rows = self._row_datasets(f, metadata, mask_sets, layouts)
+            targets = {}
+            for key, (dtype, shape) in sorted(layouts.items()):
+                targets[key] = f.create_dataset(
+                    key,
+                    shape=(n, *shape),
+                    dtype=dtype,
+                    chunks=(1, *shape),
+                    fillvalue=0,
+                    **self._kw(shuffle=dtype != "uint8"),
+                )
+                _describe(targets[key], key, dtype)
+            buffers = [np.zeros((_ROW_BLOCK, *d.shape[1:]), d.dtype) for d, _ in rows]
 
-                def flush(end: int) -> None:
-                    start = (end - 1) // _ROW_BLOCK * _ROW_BLOCK
-                    for (dataset, _), buffer in zip(rows, buffers, strict=True):
-                        dataset[start:end] = buffer[: end - start]
+            def flush(end: int) -> None:
+                start = (end - 1) // _ROW_BLOCK * _ROW_BLOCK
+                for (dataset, _), buffer in zip(rows, buffers, strict=True):
+                    dataset[start:end] = buffer[: end - start]
 
-                for r in records():  # one frame at a time: flat memory
-                    k = r["k"]
-                    for (_, value_of), buffer in zip(rows, buffers, strict=True):
-                        buffer[k % _ROW_BLOCK] = value_of(r)
-                    if (k + 1) % _ROW_BLOCK == 0 or k + 1 == self.settings.n_frames:
-                        flush(k + 1)
-                    if r["arrays"]:
-                        with h5py.File(self._part_path(k), "r") as part:
-                            for key in r["arrays"]:
-                                source = part[key]
-                                mask, chunk = source.id.read_direct_chunk((0,) * source.ndim)
-                                offset = (k,) + (0,) * (source.ndim - 1)
-                                targets[key].id.write_direct_chunk(offset, chunk, mask)
-                for name, info in metadata["sets"]["flow"].items():
-                    g = f.require_group(f"flow/{name}")
-                    g.attrs["grid_px"] = info["grid_px"]
-                    g.attrs["encoding"] = info["encoding"]
-                self._write_model_group(f)
-            os.replace(tmp, self.sequence_path)
-        except BaseException:
-            with contextlib.suppress(FileNotFoundError):
-                os.remove(tmp)
-            raise
+            for r in records():  # one frame at a time: flat memory
+                k = r["k"]
+                for (_, value_of), buffer in zip(rows, buffers, strict=True):
+                    buffer[k % _ROW_BLOCK] = value_of(r)
+                if (k + 1) % _ROW_BLOCK == 0 or k + 1 == self.settings.n_frames:
+                    flush(k + 1)
+                if r["arrays"]:
+                    with h5py.File(self._part_path(k), "r") as part:
+                        for key in r["arrays"]:
+                            source = part[key]
+                            mask, chunk = source.id.read_direct_chunk((0,) * source.ndim)
+                            offset = (k,) + (0,) * (source.ndim - 1)
+                            targets[key].id.write_direct_chunk(offset, chunk, mask)
+            for name, info in metadata["sets"]["flow"].items():
+                g = f.require_group(f"flow/{name}")
+                g.attrs["grid_px"] = info["grid_px"]
+                g.attrs["encoding"] = info["encoding"]
+            self._write_model_group(f)
 
     def _write_root_attributes(self, f: h5py.File, metadata: dict[str, Any]) -> None:
         s = self.settings
