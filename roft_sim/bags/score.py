@@ -41,24 +41,11 @@ from roft_sim.bags.messages import (
     twist_from_msg,
 )
 from roft_sim.bags.reader import BagMessage, bag_files, bag_metadata, bag_topics, read_messages
-from roft_sim.datasets.atomic_files import atomic_write_text
 from roft_sim.datasets.base import Sequence
-from roft_sim.datasets.fast_ycb_codec import format_rows
 from roft_sim.errors import ConfigError, DatasetFormatError
 from roft_sim.harness.evaluation import SequenceEvaluation
 from roft_sim.harness.inputs import resolve_object_model
-from roft_sim.harness.outputs import (
-    ESTIMATES_FILE,
-    FRAME_ERRORS_FILE,
-    POSE_ESTIMATE_FILE,
-    SEQUENCE_METRICS_FILE,
-    VELOCITY_ESTIMATE_FILE,
-    pose_estimate_rows,
-    save_estimates,
-    save_frame_errors,
-    velocity_estimate_rows,
-    write_json,
-)
+from roft_sim.harness.outputs import write_estimate_files, write_json
 from roft_sim.harness.run_dataset import METRICS_FILE, RUN_FILE
 from roft_sim.metrics import (
     INVALID_POLICIES,
@@ -331,18 +318,9 @@ def write_score_outputs(
     sequence's folder, ``metrics.json``, ``estimates.npz``, ``frame_errors.npz``,
     ``pose_estimate.txt`` and ``velocity_estimate.txt`` (docs/running.md, "Outputs")."""
     out = Path(out_dir)
-    folder = out / score.sequence_name
-    folder.mkdir(parents=True, exist_ok=True)
-    estimates = score.read.estimates
     truth = sequence.ground_truth()
     t_gt = None if truth is None else truth.T_cam_obj[:, :3, 3]
-    atomic_write_text(folder / POSE_ESTIMATE_FILE, format_rows(pose_estimate_rows(estimates)))
-    velocity = velocity_estimate_rows(estimates, t_gt)
-    atomic_write_text(folder / VELOCITY_ESTIMATE_FILE, format_rows(velocity))
-    save_estimates(folder / ESTIMATES_FILE, estimates)
-    if score.evaluation.metrics is not None:
-        save_frame_errors(folder / FRAME_ERRORS_FILE, score.evaluation.metrics)
-    write_json(folder / SEQUENCE_METRICS_FILE, score.evaluation.entry())
+    write_estimate_files(out / score.sequence_name, score.read.estimates, score.evaluation, t_gt)
     write_json(out / METRICS_FILE, score.metrics)
     write_json(
         out / RUN_FILE,

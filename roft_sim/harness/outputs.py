@@ -87,6 +87,7 @@ __all__ = [
     "read_json",
     "pose_estimate_rows",
     "velocity_estimate_rows",
+    "write_estimate_files",
     "write_sequence_outputs",
     "read_pose_estimate",
     "read_velocity_estimate",
@@ -497,25 +498,48 @@ def write_sequence_outputs(
 
     ``tum``: also the TUM trajectories (:func:`write_tum_files`)."""
     folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    _write_rows(folder / POSE_ESTIMATE_FILE, pose_estimate_rows(run.estimates))
     t_gt = None if run.ground_truth is None else run.ground_truth.T_cam_obj[:, :3, 3]
-    _write_rows(folder / VELOCITY_ESTIMATE_FILE, velocity_estimate_rows(run.estimates, t_gt))
+    write_estimate_files(
+        folder,
+        run.estimates,
+        evaluation,
+        t_gt,
+        step_times_s=run.step_times_s,
+        load_times_s=run.load_times_s,
+    )
     _write_rows(
         folder / EXECUTION_TIMES_FILE,
         np.stack([1e3 * run.step_times_s, 1e3 * run.load_times_s], axis=1),
     )
-    save_estimates(
-        folder / ESTIMATES_FILE,
-        run.estimates,
-        step_times_s=run.step_times_s,
-        load_times_s=run.load_times_s,
-    )
     save_deliveries(folder / DELIVERIES_FILE, run)
     save_wall_clock(folder, run)
-    if evaluation.metrics is not None:
-        save_frame_errors(folder / FRAME_ERRORS_FILE, evaluation.metrics)
-    write_json(folder / SEQUENCE_METRICS_FILE, evaluation.entry())
     if tum:
         write_tum_files(folder, run)
     return folder
+
+
+def write_estimate_files(
+    folder: str | Path,
+    estimates: SequenceABC[Estimate],
+    evaluation: SequenceEvaluation,
+    t_gt: F64 | None,
+    *,
+    step_times_s: F64 | None = None,
+    load_times_s: F64 | None = None,
+) -> None:
+    """Writes the per-sequence files of any scored estimates into ``folder`` (created):
+    ``pose_estimate.txt``, ``velocity_estimate.txt`` (``t_gt`` (N, 3) [m], the ground-truth
+    positions, or None), ``estimates.npz`` (with the step and load times when given),
+    ``frame_errors.npz`` (when scored) and ``metrics.json``. A run's folder
+    (:func:`write_sequence_outputs`) and a scored bag's (``roft_sim.bags.score``) both hold them.
+    """
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    _write_rows(folder / POSE_ESTIMATE_FILE, pose_estimate_rows(estimates))
+    _write_rows(folder / VELOCITY_ESTIMATE_FILE, velocity_estimate_rows(estimates, t_gt))
+    save_estimates(
+        folder / ESTIMATES_FILE, estimates, step_times_s=step_times_s, load_times_s=load_times_s
+    )
+    if evaluation.metrics is not None:
+        save_frame_errors(folder / FRAME_ERRORS_FILE, evaluation.metrics)
+    write_json(folder / SEQUENCE_METRICS_FILE, evaluation.entry())
