@@ -63,3 +63,32 @@ def test_importing_the_cli_leaves_trimesh_and_the_network_modules_out():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
+
+
+def _options(parser: argparse.ArgumentParser, prefix: str = ""):
+    """Every option of ``parser`` and its sub-parsers: ``(command path, option, action)``."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                yield from _options(sub, f"{prefix} {name}".strip())
+        else:
+            for option in action.option_strings:
+                yield prefix, option, action
+
+
+def test_the_cli_choices_are_the_library_sets():
+    """The CLI spells the invalid-estimate policies, depth encodings and twist conventions as
+    literals (importing the metrics and bag modules would slow every verb's start); each copy
+    must be the library's set, plus ``auto`` where the verb offers it."""
+    from roft_sim.bags.messages import DEPTH_ENCODINGS, TWIST_LINEARS
+    from roft_sim.metrics import INVALID_POLICIES
+
+    sets = {"--invalid": INVALID_POLICIES, "--depth-encoding": DEPTH_ENCODINGS}
+    sets["--twist-linear"] = TWIST_LINEARS
+    seen = []
+    for command, option, action in _options(build_parser()):
+        if option in sets:
+            seen.append((command, option))
+            assert set(action.choices) - {"auto"} == set(sets[option]), (command, option)
+    assert ("run", "--invalid") in seen and ("bag score", "--invalid") in seen
+    assert ("bag export", "--depth-encoding") in seen and ("bag score", "--twist-linear") in seen

@@ -27,6 +27,7 @@ from roft_sim.bags.messages import (
     CAMERA_INFO,
     COLOR_INFO_TOPIC,
     COLOR_TOPIC,
+    DEPTH_ENCODINGS,
     DEPTH_INFO_TOPIC,
     DEPTH_TOPIC,
     DETECTOR_POSE_TOPIC,
@@ -179,8 +180,10 @@ def export_sequence_bag(
     """
     t0 = time.perf_counter()
     path = check_bag_path(path, overwrite=overwrite)
-    if depth_encoding not in ("32FC1", "16UC1"):
-        raise ConfigError(f"unknown depth encoding {depth_encoding!r}; expected 32FC1 or 16UC1")
+    if depth_encoding not in DEPTH_ENCODINGS:
+        raise ConfigError(
+            f"unknown depth encoding {depth_encoding!r}; expected one of {DEPTH_ENCODINGS}"
+        )
     check_inputs(sequence, options)
     truth = sequence.ground_truth() if ground_truth else None
     if ground_truth and truth is None:

@@ -32,6 +32,7 @@ import numpy as np
 from roft_sim.bags.messages import (
     OBJECT_FRAME,
     POSE_STAMPED,
+    TWIST_LINEARS,
     TWIST_STAMPED,
     TwistLinear,
     frame_from_stamp_ns,
@@ -160,8 +161,10 @@ def estimates_from_messages(
         ConfigError: a stamp that matches no frame, an unknown ``twist_linear``.
         DatasetFormatError: a pose with a zero or non-finite quaternion or position.
     """
-    if twist_linear not in ("origin", "spatial"):
-        raise ConfigError(f"unknown twist convention {twist_linear!r}; expected origin or spatial")
+    if twist_linear not in TWIST_LINEARS:
+        raise ConfigError(
+            f"unknown twist convention {twist_linear!r}; expected one of {TWIST_LINEARS}"
+        )
     pose_of, replaced_poses = _by_frame(poses, n_frames, fps, tolerance_ns)
     twist_of, replaced_twists = _by_frame(twists, n_frames, fps, tolerance_ns)
     estimates = []
