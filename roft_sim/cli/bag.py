@@ -15,7 +15,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from roft_sim.cli.output_dirs import prepare_output_dir
+from roft_sim.cli.output_dirs import check_output_dir, prepare_output_dir
 from roft_sim.errors import ConfigError
 
 __all__ = ["register"]
@@ -235,9 +235,7 @@ def _score(args: argparse.Namespace) -> int:
     if not args.stamp_tolerance_ms >= 0:
         raise ConfigError(f"--stamp-tolerance-ms must be >= 0, got {args.stamp_tolerance_ms}")
     sequence = _open_one(args.dataset)
-    out = args.out
-    if out.is_dir() and any(out.iterdir()) and not args.overwrite:
-        raise ConfigError(f"output directory {str(out)!r} is not empty; pass --overwrite")
+    check_output_dir(args.out, overwrite=args.overwrite, can_resume=False)  # before the scoring
     score = score_bag(
         args.bag,
         sequence,
@@ -247,7 +245,7 @@ def _score(args: argparse.Namespace) -> int:
         invalid=None if args.invalid == "auto" else args.invalid,
         tolerance_ns=round(args.stamp_tolerance_ms * 1e6),
     )
-    out = prepare_output_dir(out, overwrite=args.overwrite, can_resume=False)
+    out = prepare_output_dir(args.out, overwrite=args.overwrite, can_resume=False)
     record = {
         "command": command_record(args),
         "pose_topic": args.pose_topic,

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from roft_sim.errors import ConfigError
 
-__all__ = ["prepare_output_dir"]
+__all__ = ["check_output_dir", "prepare_output_dir"]
 
 
 def prepare_output_dir(
@@ -26,6 +26,23 @@ def prepare_output_dir(
         ConfigError: the path is a file, a non-empty directory without overwrite/resume, or a
             folder ``overwrite`` must not empty.
     """
+    path = check_output_dir(path, overwrite=overwrite, resume=resume, can_resume=can_resume)
+    if overwrite and path.is_dir() and any(path.iterdir()):
+        shutil.rmtree(path)
+    path.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+def check_output_dir(
+    path: str | Path, *, overwrite: bool = False, resume: bool = False, can_resume: bool = True
+) -> Path:
+    """Checks, changing nothing, that :func:`prepare_output_dir` may write ``path`` (same
+    arguments); returns it as a Path. For a verb that works before it writes: a bad ``--out``
+    fails first.
+
+    Raises:
+        ConfigError: as :func:`prepare_output_dir`.
+    """
     path = Path(path)
     if path.exists() and not path.is_dir():
         raise ConfigError(f"output {str(path)!r} is a file; give a directory path")
@@ -34,13 +51,11 @@ def prepare_output_dir(
             raise ConfigError("--overwrite and --resume contradict each other; pick one")
         if overwrite:
             _refuse_to_empty_a_working_folder(path)
-            shutil.rmtree(path)
         elif not resume:
             hint = " or --resume to continue an interrupted run" if can_resume else ""
             raise ConfigError(
                 f"output directory {str(path)!r} is not empty; pass --overwrite to replace it{hint}"
             )
-    path.mkdir(parents=True, exist_ok=True)
     return path
 
 
