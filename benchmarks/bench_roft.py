@@ -15,7 +15,10 @@ baseline, ..., now), so that every tree sees the same machine load: a speed-up i
 measured in one run. The same run scores every tree's estimates against the exact ground truth
 (ADD-AUC, position / rotation / velocity RMSE) and prints the largest per-frame difference
 between the working tree's estimates and each baseline's, so a speed-up that moves accuracy
-shows in the same table.
+shows in the same table. ``--config default reference`` measures the default configuration and
+the paper's (``reference_config()``) the same way, interleaved, each tree under each (labels
+``now:default``, ``now:reference``; the working tree under the first configuration is the one
+the others are compared with): the step time a user gives up for the default's accuracy.
 
 Printed per resolution and input (flow given, or DIS + step): the step's wall time [ms], median,
 p95, p99, max and mean over all frames, over the frames without an arriving pose and over the
@@ -29,6 +32,7 @@ and ``render`` (the outlier test's depth renders, inside ``replay`` and ``pose``
 
     python benchmarks/bench_roft.py --frames 150 --repeats 2 --baseline-ref HEAD~1
     python benchmarks/bench_roft.py --resolutions 640x480 --dis-presets ultrafast
+    python benchmarks/bench_roft.py --config default reference --repeats 2
     python benchmarks/bench_roft.py --resolutions 1280x720 --repeats 1 --cache /tmp/bench_roft
 
 Profiles of one run (how the hot spots are found; pyinstrument is in the dev extra):
@@ -49,6 +53,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ[_var] = "1"
 
 import argparse  # noqa: E402
+import dataclasses  # noqa: E402
 import json  # noqa: E402
 import shutil  # noqa: E402
 import subprocess  # noqa: E402
@@ -65,6 +70,8 @@ PERIOD = 6
 """Frames between two captures of the pose and mask networks (the paper's 5 fps at 30 fps)."""
 DELAY = 6
 """Frames a capture takes to arrive (the paper's 200 ms)."""
+CONFIGS = ("default", "reference")
+"""``RoftConfig()`` and the paper's configuration (``reference_config()``)."""
 STAGES = ("mask_sync", "velocity", "remeasure", "pose", "replay", "render")
 """The stages a tracker may report in ``stage_times_s``, in pipeline order."""
 
@@ -237,7 +244,7 @@ def child_main(spec: dict[str, Any]) -> None:
         t0, c0 = time.perf_counter(), time.thread_time()
         if dis is not None and k:
             f = dis.calc(grey[k - 1], grey[k], None)
-            o = dataclass_replace(o, flow=FlowField(flow_px=f, from_k=k - 1, to_k=k))
+            o = dataclasses.replace(o, flow=FlowField(flow_px=f, from_k=k - 1, to_k=k))
         est = tracker.step(o)
         wall[k] = time.perf_counter() - t0
         cpu[k] = time.thread_time() - c0
@@ -261,12 +268,6 @@ def child_main(spec: dict[str, Any]) -> None:
         twist=twist,
         spatial=spatial,
     )
-
-
-def dataclass_replace(obj: Any, **changes: Any) -> Any:
-    import dataclasses
-
-    return dataclasses.replace(obj, **changes)
 
 
 # ----------------------------------------------------------------------------- the parent
@@ -342,41 +343,78 @@ def difference(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> str:
     return text + f"; {mismatch} validity mismatches"
 
 
-def report(label: str, trees: list[Tree], runs: dict[str, list[dict[str, np.ndarray]]]) -> None:
-    now = trees[-1].label
-    print(f"  {label}: step wall time [ms]      median     p95     p99     max    mean")
-    for tree in trees:
-        rs = runs[tree.label]
+@dataclasses.dataclass(frozen=True)
+class Variant:
+    """One measured combination: a tree and a configuration of ROFT."""
+
+    tree: Tree
+    config: str
+    label: str
+    """``tree.label``, with ``:config`` when several configurations are measured."""
+
+
+def variants_of(trees: list[Tree], configs: list[str]) -> list[Variant]:
+    """Every tree under every configuration, grouped by configuration (the working tree last in
+    each group)."""
+    return [
+        Variant(tree, config, tree.label if len(configs) == 1 else f"{tree.label}:{config}")
+        for config in configs
+        for tree in trees
+    ]
+
+
+def comparisons(variants: list[Variant]) -> list[tuple[Variant, Variant]]:
+    """``(now, other)`` pairs: the working tree against each baseline commit under the same
+    configuration, then the working tree under each further configuration against the first."""
+    now = {v.config: v for v in variants if v.tree.label == "now"}
+    pairs = [(now[v.config], v) for v in variants if v.tree.label != "now"]
+    first = next(iter(now.values()))
+    return pairs + [(v, first) for v in now.values() if v is not first]
+
+
+def label_width(variants: list[Variant]) -> int:
+    """The width of the label column (10 or the longest label)."""
+    return max(10, *(len(v.label) for v in variants))
+
+
+def report(
+    label: str, variants: list[Variant], runs: dict[str, list[dict[str, np.ndarray]]]
+) -> None:
+    width = label_width(variants)
+    pad = " " * (width - 10)
+    print(f"  {label}: step wall time [ms]{pad}      median     p95     p99     max    mean")
+    for variant in variants:
+        rs = runs[variant.label]
         wall = np.concatenate([r["wall"] for r in rs])
         pose = np.concatenate([r["has_pose"] for r in rs])
         for name, sel in (("all", slice(None)), ("no pose", ~pose), ("pose arrives", pose)):
-            print(f"    {tree.label:<10} {name:<18} {percentiles_ms(wall[sel])}")
-    base_medians = {
-        t.label: np.median(np.concatenate([r["wall"] for r in runs[t.label]])) for t in trees
+            print(f"    {variant.label:<{width}} {name:<18} {percentiles_ms(wall[sel])}")
+    medians = {
+        v.label: np.median(np.concatenate([r["wall"] for r in runs[v.label]])) for v in variants
     }
-    for tree in trees[:-1]:
-        ratio = base_medians[now] / base_medians[tree.label]
-        print(f"    now / {tree.label}: median step {ratio:.3f}x")
-    for tree in trees:
-        stages = np.concatenate([r["stages"] for r in runs[tree.label]])
+    for a, b in comparisons(variants):
+        print(f"    {a.label} / {b.label}: median step {medians[a.label] / medians[b.label]:.3f}x")
+    for variant in variants:
+        stages = np.concatenate([r["stages"] for r in runs[variant.label]])
         if np.isnan(stages).all():
             continue
-        pose = np.concatenate([r["has_pose"] for r in runs[tree.label]])
-        print(f"    stages of {tree.label} [ms]     median     p95     p99     max    mean")
+        pose = np.concatenate([r["has_pose"] for r in runs[variant.label]])
+        print(f"    stages of {variant.label} [ms]     median     p95     p99     max    mean")
         for i, stage in enumerate(STAGES):
             for name, sel in (("", ~pose), (" (pose)", pose)):
                 print(f"      {stage + name:<22} {percentiles_ms(stages[sel, i])}")
 
 
 def measure(
-    trees: list[Tree], folder: Path, scratch: Path, args: argparse.Namespace, dis: str | None
+    variants: list[Variant], folder: Path, scratch: Path, repeats: int, dis: str | None
 ) -> dict[str, list[dict[str, np.ndarray]]]:
-    runs: dict[str, list[dict[str, np.ndarray]]] = {t.label: [] for t in trees}
-    for r in range(args.repeats):
-        for tree in trees:
-            out = scratch / f"{tree.label}_{folder.name}_{dis}_{r}.npz"
-            spec = {"folder": str(folder), "dis": dis, "config": args.config, "out": str(out)}
-            runs[tree.label].append(run_child(tree, spec))
+    """Every variant ``repeats`` times, interleaved (so that all see the same machine load)."""
+    runs: dict[str, list[dict[str, np.ndarray]]] = {v.label: [] for v in variants}
+    for r in range(repeats):
+        for v in variants:
+            out = scratch / f"{v.label.replace(':', '_')}_{folder.name}_{dis}_{r}.npz"
+            spec = {"folder": str(folder), "dis": dis, "config": v.config, "out": str(out)}
+            runs[v.label].append(run_child(v.tree, spec))
     return runs
 
 
@@ -387,7 +425,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--resolutions", nargs="+", default=["640x480", "1280x720"])
     parser.add_argument("--dis-presets", nargs="*", default=[], help="e.g. ultrafast medium")
     parser.add_argument("--baseline-ref", nargs="*", default=[], help="git commits to compare")
-    parser.add_argument("--config", choices=("default", "reference"), default="default")
+    parser.add_argument(
+        "--config",
+        nargs="+",
+        choices=CONFIGS,
+        default=["default"],
+        help="ROFT configurations to measure side by side (the first is the one compared with)",
+    )
     parser.add_argument("--cache", type=Path, help="keep the rendered sequences here")
     parser.add_argument("--profile", metavar="WxH", help="one in-process run, for a profiler")
     parser.add_argument("--child", help=argparse.SUPPRESS)
@@ -395,21 +439,23 @@ def main(argv: list[str] | None = None) -> int:
     if args.child is not None:
         child_main(json.loads(args.child))
         return 0
+    configs = list(dict.fromkeys(args.config))
     scratch = Path(tempfile.mkdtemp(prefix="bench_roft_"))
     cache = args.cache or scratch
     try:
         if args.profile:
             w, h = (int(x) for x in args.profile.split("x"))
             folder = sequence_folder(cache, w, h, args.frames)
-            spec = {"folder": str(folder), "dis": None, "config": args.config}
+            spec = {"folder": str(folder), "dis": None, "config": configs[0]}
             child_main({**spec, "out": str(scratch / "profile.npz")})
             return 0
         trees = [*(baseline_tree(ref, scratch) for ref in args.baseline_ref), current_tree(scratch)]
         compile_trees(trees)
+        variants = variants_of(trees, configs)
         print(
             f"python {sys.version.split()[0]}, numpy {np.__version__}; {os.cpu_count()} CPUs, "
             f"load average {', '.join(f'{x:.2f}' for x in os.getloadavg())}; "
-            f"config {args.config}; {args.repeats} interleaved runs per tree"
+            f"config {', '.join(configs)}; {args.repeats} interleaved runs per tree"
         )
         for res in args.resolutions:
             w, h = (int(x) for x in res.split("x"))
@@ -418,14 +464,16 @@ def main(argv: list[str] | None = None) -> int:
             gt = dict(np.load(folder / "gt.npz"))
             print(f"{res}: {args.frames} frames, object mask {meta['mask_px']:.0f} px")
             for dis in [None, *args.dis_presets]:
-                runs = measure(trees, folder, scratch, args, dis)
+                runs = measure(variants, folder, scratch, args.repeats, dis)
                 label = "flow given" if dis is None else f"DIS {dis} + step"
-                report(label, trees, runs)
-                for tree in trees:
-                    print(f"    accuracy {tree.label:<10} {accuracy(runs[tree.label][0], gt)}")
-                for tree in trees[:-1]:
-                    diff = difference(runs[trees[-1].label][0], runs[tree.label][0])
-                    print(f"    now vs {tree.label}: {diff}")
+                report(label, variants, runs)
+                width = label_width(variants)
+                for v in variants:
+                    print(f"    accuracy {v.label:<{width}} {accuracy(runs[v.label][0], gt)}")
+                for a, b in comparisons(variants):
+                    if a.config == b.config:
+                        diff = difference(runs[a.label][0], runs[b.label][0])
+                        print(f"    {a.label} vs {b.label}: {diff}")
             print(f"  load average after: {os.getloadavg()[0]:.2f}", flush=True)
     finally:
         shutil.rmtree(scratch, ignore_errors=True)

@@ -511,14 +511,14 @@ FIGURES: tuple[Figure, ...] = (
     ),
     Figure(
         name="roft-step",
-        description="ROFT's step time, stage by stage",
+        description="ROFT's step time, default and reference configuration, stage by stage",
         regions=("roft-step",),
         make=_bench(
             "bench_roft.py",
-            "--frames 60 --repeats 1 --resolutions 640x480",
-            "",
+            "--frames 60 --repeats 1 --resolutions 640x480 --config default reference",
+            "--config default reference",
             "roft-step",
-            show_lines=6,
+            show_lines=10,
         ),
     ),
 )
