@@ -33,7 +33,6 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from roft_sim.errors import ConfigError
 
@@ -466,6 +465,10 @@ class _Checker:
         dt = (t[2:] - t[:-2])[:, None]
         v_fd = (T[2:, :3, 3] - T[:-2, :3, 3]) / dt
         R_rel = T[2:, :3, :3] @ np.swapaxes(T[:-2, :3, :3], 1, 2)
+        # imported here: scipy.spatial takes half a second, and every command that imports
+        # roft_sim.datasets would pay it
+        from scipy.spatial.transform import Rotation
+
         w_fd = Rotation.from_matrix(R_rel).as_rotvec() / dt
         for name, fd, stored, floor, unit in (
             ("linear", v_fd, rows[1:-1, :3], 0.01, "m/s"),
